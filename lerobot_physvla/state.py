@@ -1,0 +1,105 @@
+"""The physical state s_t the corrector reads: one record per env, batched over B envs.
+
+`PhysState` holds B envs as arrays (struct of arrays), so the corrector works on all envs at
+once. It also packs to / unpacks from one flat float vector per env with a fixed layout, which
+is how state crosses process boundaries (async vector envs) and LeRobot observation dicts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Fields in packing order: (name, shape given the arm's joint count n).
+_FIELDS = (
+    ("valid", lambda n: ()),  # 1.0 if this record was read successfully, else 0.0
+    ("episode_step", lambda n: ()),  # control steps since the env's last reset (0 at reset)
+    ("dt", lambda n: ()),  # control period, s
+    ("eef_pos", lambda n: (3,)),  # end-effector position, m (world)
+    ("gripper", lambda n: ()),  # gripper opening, m
+    ("obj_pos", lambda n: (3,)),  # manipulated object position, m
+    ("obj_rest_z", lambda n: ()),  # object's resting height (read at reset), m
+    ("target_pos", lambda n: (3,)),  # target (e.g. plate) position, m
+    ("q", lambda n: (n,)),  # arm joint positions, rad
+    ("qdot", lambda n: (n,)),  # arm joint velocities, rad/s
+    ("M", lambda n: (n, n)),  # arm block of the joint-space inertia matrix, kg m^2
+    ("bias", lambda n: (n,)),  # C(q, qdot) qdot + G(q), N m
+    ("tau", lambda n: (n,)),  # applied joint torques (actuator + applied), N m
+    ("J_pos", lambda n: (3, n)),  # translational Jacobian of the end-effector, m/rad
+)
+
+
+def packed_size(n_joints: int) -> int:
+    """Length of the flat vector that holds one env's state for an arm of n_joints."""
+    return sum(int(np.prod(shape(n_joints), dtype=int)) for _, shape in _FIELDS)
+
+
+def n_joints_from_size(size: int) -> int:
+    """Inverse of packed_size; raises if no joint count gives this length."""
+    for n in range(1, 64):
+        if packed_size(n) == size:
+            return n
+    raise ValueError(f"physvla: a packed state of length {size} matches no arm joint count")
+
+
+@dataclass
+class PhysState:
+    """Physical state of B envs (see _FIELDS for each attribute's meaning and unit)."""
+
+    valid: np.ndarray  # (B,) bool
+    episode_step: np.ndarray  # (B,)
+    dt: np.ndarray  # (B,)
+    eef_pos: np.ndarray  # (B, 3)
+    gripper: np.ndarray  # (B,)
+    obj_pos: np.ndarray  # (B, 3)
+    obj_rest_z: np.ndarray  # (B,)
+    target_pos: np.ndarray  # (B, 3)
+    q: np.ndarray  # (B, n)
+    qdot: np.ndarray  # (B, n)
+    M: np.ndarray  # (B, n, n)
+    bias: np.ndarray  # (B, n)
+    tau: np.ndarray  # (B, n)
+    J_pos: np.ndarray  # (B, 3, n)
+
+    @property
+    def batch_size(self) -> int:
+        return self.eef_pos.shape[0]
+
+    @property
+    def n_joints(self) -> int:
+        return self.q.shape[1]
+
+    @classmethod
+    def empty(cls, batch_size: int, n_joints: int) -> PhysState:
+        """All-invalid state (the corrector passes every action through)."""
+        return cls.unpack(np.zeros((batch_size, packed_size(n_joints))))
+
+    def pack(self) -> np.ndarray:
+        """(B, packed_size(n)) float64 array with the fixed field layout."""
+        b = self.batch_size
+        parts = [np.asarray(getattr(self, name), dtype=np.float64).reshape(b, -1) for name, _ in _FIELDS]
+        return np.concatenate(parts, axis=1)
+
+    @classmethod
+    def unpack(cls, flat: np.ndarray) -> PhysState:
+        """Inverse of pack, for a (B, L) or (L,) array. Views into one float64 buffer."""
+        flat = np.asarray(flat, dtype=np.float64)
+        if flat.ndim == 1:
+            flat = flat[None]
+        if flat.ndim != 2:
+            raise ValueError(f"physvla: packed state must be (B, L), got shape {flat.shape}")
+        n = n_joints_from_size(flat.shape[1])
+        b = flat.shape[0]
+        out, i = {}, 0
+        for name, shape in _FIELDS:
+            s = shape(n)
+            k = int(np.prod(s, dtype=int))
+            out[name] = flat[:, i : i + k].reshape((b, *s))
+            i += k
+        out["valid"] = out["valid"] > 0.5
+        return cls(**out)
+
+    def is_finite(self) -> np.ndarray:
+        """(B,) True where every field of the env's record is finite."""
+        return np.isfinite(self.pack()).all(axis=1)

@@ -1,0 +1,114 @@
+"""Phase detection at and around every threshold, and each Branch A correction in action units."""
+
+import numpy as np
+import pytest
+
+from lerobot_physvla.config import ActionLayout, PhysVLAConfig
+from lerobot_physvla.phase import Phase, PhaseCorrector, detect_phase, xy_distance
+
+D, H = 0.06, 0.02  # delta_grasp_m, h_lift_m
+
+
+def phase_of(d_obj, d_tgt, lift):
+    return Phase(detect_phase(np.array([d_obj]), np.array([d_tgt]), np.array([lift]), D, H)[0])
+
+
+@pytest.mark.parametrize(
+    "d_obj,d_tgt,lift,expected",
+    [
+        (0.06, 1.0, 0.0, Phase.APPROACH),  # at the envelope: approach (>=)
+        (0.0599, 1.0, 0.0, Phase.GRASP),
+        (0.0599, 1.0, 0.02, Phase.GRASP),  # at h_lift: not lifted (>)
+        (0.0599, 1.0, 0.0201, Phase.TRANSPORT),
+        (0.0599, 0.06, 0.0201, Phase.TRANSPORT),  # at the target envelope: transport (>=)
+        (0.0599, 0.0599, 0.0201, Phase.PLACE),
+        (0.06, 0.0, 0.5, Phase.APPROACH),  # far from the object is approach even if it flies
+        (0.0, 0.0, -0.01, Phase.GRASP),  # object pushed below its resting height
+    ],
+)
+def test_detect_phase_thresholds(d_obj, d_tgt, lift, expected):
+    assert phase_of(d_obj, d_tgt, lift) == expected
+
+
+def test_xy_distance_ignores_height():
+    a = np.array([[0.0, 0.0, 5.0]])
+    b = np.array([[0.03, 0.04, -2.0]])
+    assert xy_distance(a, b)[0] == pytest.approx(0.05)
+
+
+def run(phase, a_raw, eef=(0, 0, 1.0), obj=(0, 0, 0.9), d_tgt=1.0, cfg=None, corr=None):
+    cfg = cfg or PhysVLAConfig()
+    corr = corr or PhaseCorrector(cfg, 1)
+    out = corr(np.array([a_raw], float), np.array([phase], np.int8), np.array([eef], float),
+               np.array([obj], float), np.array([d_tgt], float))
+    return out[0], corr
+
+
+RAW = [0.4, -0.2, 0.1, 0.3, 0.0, -0.3, 1.0]
+
+
+def test_approach_vetoes_the_gripper_only():
+    out, _ = run(Phase.APPROACH, RAW)
+    np.testing.assert_allclose(out[:6], RAW[:6])
+    assert out[6] == -1.0
+
+
+def test_grasp_pulls_toward_the_waypoint_in_action_units():
+    # p* - p_eef = (+0.01, -0.02, -0.05) m = (0.2, -0.4, -1.0) units at 0.05 m/unit
+    out, _ = run(Phase.GRASP, RAW, eef=(0.0, 0.0, 1.0), obj=(0.01, -0.02, 0.95))
+    expected_pos = 0.5 * np.array([0.2, -0.4, -1.0]) + 0.5 * np.array(RAW[:3])
+    np.testing.assert_allclose(out[:3], expected_pos)
+    np.testing.assert_allclose(out[3:], RAW[3:])
+
+
+def test_grasp_metre_to_unit_conversion_follows_the_layout():
+    lay = ActionLayout(dim=7, pos=(0, 1, 2), rot=(3, 4, 5), gripper=6, metres_per_unit=0.1)
+    cfg = PhysVLAConfig(layout=lay, grasp_offset_m=(0.0, 0.0, 0.02))
+    out, _ = run(Phase.GRASP, [0] * 7, eef=(0, 0, 1.0), obj=(0.01, 0.0, 0.98), cfg=cfg)
+    np.testing.assert_allclose(out[:3], 0.5 * np.array([0.1, 0.0, 0.0]))  # 1 cm = 0.1 units; z offset cancels
+
+
+def test_grasp_waypoint_is_clipped_to_bounds():
+    out, _ = run(Phase.GRASP, [1.0, 0, 0, 0, 0, 0, 0], eef=(0, 0, 1.0), obj=(0.5, 0, 1.0))
+    assert out[0] == 1.0
+
+
+def test_transport_lift_bias_and_ema():
+    cfg = PhysVLAConfig()
+    out1, corr = run(Phase.TRANSPORT, RAW, cfg=cfg)
+    lift_units = 0.02 / 0.05
+    x1 = np.array(RAW[:3]) + [0, 0, lift_units]
+    np.testing.assert_allclose(out1[:3], x1)  # first transport step: EMA starts at its input
+    raw2 = [0.0, 0.0, 0.0, 0.3, 0.0, -0.3, 1.0]
+    out2, corr = run(Phase.TRANSPORT, raw2, cfg=cfg, corr=corr)
+    x2 = np.array([0, 0, lift_units])
+    np.testing.assert_allclose(out2[:3], 0.92 * x1 + 0.08 * x2)
+    np.testing.assert_allclose(out2[3:], raw2[3:])  # rotation and gripper unsmoothed
+    # leaving transport and coming back restarts the EMA
+    run(Phase.PLACE, RAW, cfg=cfg, corr=corr)
+    out3, _ = run(Phase.TRANSPORT, raw2, cfg=cfg, corr=corr)
+    np.testing.assert_allclose(out3[:3], x2)
+
+
+def test_uncommitted_steps_leave_the_ema_alone():
+    corr = PhaseCorrector(PhysVLAConfig(), 1)
+    args = (np.array([Phase.TRANSPORT], np.int8), np.zeros((1, 3)), np.zeros((1, 3)), np.ones(1))
+    corr(np.array([RAW]), *args, commit=False)
+    assert not corr.in_transport[0]
+    corr(np.array([RAW]), *args, commit=True)
+    assert corr.in_transport[0]
+
+
+@pytest.mark.parametrize("d_tgt,ramp", [(0.04, 0.5), (0.0, 0.0), (0.08, 1.0), (0.2, 1.0)])
+def test_place_deceleration_ramp(d_tgt, ramp):
+    out, _ = run(Phase.PLACE, RAW, d_tgt=d_tgt)
+    np.testing.assert_allclose(out[:3], ramp * np.array(RAW[:3]))
+    np.testing.assert_allclose(out[3:], RAW[3:])
+
+
+def test_reset_clears_one_env_only():
+    corr = PhaseCorrector(PhysVLAConfig(), 2)
+    corr.ema[:] = 1.0
+    corr.in_transport[:] = True
+    corr.reset(np.array([1]))
+    assert corr.in_transport.tolist() == [True, False] and corr.ema[1].sum() == 0
