@@ -8,8 +8,9 @@
 Contract (do-no-harm):
 - Wrong shapes (action dim, batch size, ndim) are programming errors: ValueError at once.
 - At run time, an env whose correction cannot be computed -- invalid or non-finite state, a
-  non-finite policy action, a numerical failure -- gets the policy's action back unchanged, and
-  the reason is counted in `Corrector.passthrough_counts`.
+  non-finite policy action, a mass matrix that is not positive definite, a non-finite result --
+  gets the policy's action back unchanged, and the reason is counted in
+  `Corrector.passthrough_counts` (a warning is issued the first time each reason occurs).
 - Every corrected action lies within the layout's [low, high]; an env's own action is only ever
   returned unchanged or corrected, never made non-finite.
 """
@@ -22,11 +23,16 @@ from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from .config import PhysVLAConfig
-from .dynamics import ELGate
-from .phase import Phase, PhaseCorrector, detect_phase, xy_distance
-from .state import PhysState
+from .dynamics import ELGate, el_gate
+from .phase import APPROACH, branch_a_row, ema_row, phase_of
+from .state import PhysState, field_offsets
+
+# Why an env's action was passed through unchanged (status codes of the kernels).
+REASONS = ("ok", "invalid_state", "nonfinite_state", "nonfinite_action", "singular_dynamics", "nonfinite_output")
+OK, INVALID_STATE, NONFINITE_STATE, NONFINITE_ACTION, SINGULAR, NONFINITE_OUTPUT = range(6)
 
 
 @dataclass
@@ -34,14 +40,16 @@ class StepDiagnostics:
     """What the corrector saw and did at one call, per env (for a chunk: its first step).
 
     Attributes:
-        phase: (B,) int8 `Phase` values (-1 where passed through).
+        phase: (B,) int8 `Phase` values (-1 where passed through or in baseline mode).
         d_obj_xy, d_tgt_xy, lift: (B,) metres.
         r_el: (B,) |r_EL|, N m (NaN where Branch B did not run).
         r_energy: (B,) work-energy residual, W (NaN where Branch B did not run).
         weights: (B, A) Branch B weights (0 where it did not run).
         deviation: (B,) max |a - a_raw| over channels, action units.
-        passthrough: (B,) True where the raw action was returned unchanged for a reason.
-        t_branch_a_s, t_branch_b_s, t_total_s: wall time of this call, seconds (whole batch).
+        status: (B,) index into REASONS (0 = corrected).
+        t_branch_a_s: wall time of phase detection + Branch A (+ temporal EMA), s, whole batch.
+        t_branch_b_s: wall time of the EL gate + blender, s, whole batch.
+        t_total_s: wall time of the whole call, s, whole batch.
     """
 
     phase: np.ndarray
@@ -52,10 +60,81 @@ class StepDiagnostics:
     r_energy: np.ndarray
     weights: np.ndarray
     deviation: np.ndarray
-    passthrough: np.ndarray
+    status: np.ndarray
     t_branch_a_s: float = 0.0
     t_branch_b_s: float = 0.0
     t_total_s: float = 0.0
+
+    @property
+    def passthrough(self) -> np.ndarray:
+        return self.status != OK
+
+
+@njit(cache=True)
+def _phase_step(a_raw, flat, o, pos, grip, p, d_grasp, h_lift, ema, in_tr, t_ema, t_init, commit, temporal, alpha_t):
+    """Validity, geometry, phase and Branch A (or the temporal EMA) for every env."""
+    b, a_dim = a_raw.shape
+    a_phys = np.empty_like(a_raw)
+    phase = np.full(b, -1, np.int8)
+    geo = np.full((b, 3), np.nan)  # d_obj_xy, d_tgt_xy, lift (m)
+    status = np.zeros(b, np.int8)
+    for i in range(b):
+        row = flat[i]
+        finite = True
+        for k in range(row.shape[0]):
+            if not np.isfinite(row[k]):
+                finite = False
+                break
+        if not row[o[0]] > 0.5:
+            status[i] = INVALID_STATE
+        elif not finite:
+            status[i] = NONFINITE_STATE
+        else:
+            for k in range(a_dim):
+                if not np.isfinite(a_raw[i, k]):
+                    status[i] = NONFINITE_ACTION
+                    break
+        if status[i] != OK:
+            a_phys[i] = a_raw[i]
+            continue
+        eef = row[o[1] : o[1] + 3]
+        obj = row[o[2] : o[2] + 3]
+        tgt = row[o[4] : o[4] + 3]
+        d_obj = np.hypot(eef[0] - obj[0], eef[1] - obj[1])
+        d_tgt = np.hypot(eef[0] - tgt[0], eef[1] - tgt[1])
+        lift = obj[2] - row[o[3]]
+        geo[i, 0], geo[i, 1], geo[i, 2] = d_obj, d_tgt, lift
+        ph = phase_of(d_obj, d_tgt, lift, d_grasp, h_lift)  # eq. 3
+        phase[i] = ph
+        if temporal:
+            ema_row(a_raw[i], a_phys[i], pos, alpha_t, t_ema[i], t_init[i], commit)
+        else:
+            branch_a_row(a_raw[i], a_phys[i], ph, eef, obj, d_tgt, pos, grip, p, ema[i], in_tr[i], commit)
+    return a_phys, phase, geo, status
+
+
+@njit(cache=True)
+def _blend(a_raw, a_cand, phase, status, cap, grip, gripper_open, veto, low, high):
+    """Eq. 2 with the gripper rule, clipping, and pass-through of every env whose status is not OK."""
+    out = np.empty_like(a_raw)
+    dev = np.zeros(a_raw.shape[0])
+    for i in range(a_raw.shape[0]):
+        if status[i] == OK:
+            finite = True
+            for k in range(a_raw.shape[1]):
+                v = (1.0 - cap) * a_raw[i, k] + cap * a_cand[i, k]
+                if veto and k == grip and phase[i] == APPROACH:
+                    v = gripper_open
+                v = min(max(v, low), high)
+                finite = finite and np.isfinite(v)
+                out[i, k] = v
+                dev[i] = max(dev[i], abs(v - a_raw[i, k]))
+            if finite:
+                continue
+            status[i] = NONFINITE_OUTPUT
+            dev[i] = 0.0
+        out[i] = a_raw[i]
+    return out, dev
 
 
 class Corrector:
@@ -65,30 +144,39 @@ class Corrector:
         cfg: the configuration (mode and every hyperparameter).
         batch_size: number of envs B.
         last: StepDiagnostics of the latest call.
-        passthrough_counts: Counter of reasons an env's action was passed through unchanged.
-        steps: number of env-steps seen (B per call).
+        passthrough_counts: Counter of reasons (REASONS) an env's action was passed through unchanged.
+        steps: number of env-steps seen (B per call; a chunk counts once).
     """
 
     def __init__(self, cfg: PhysVLAConfig | None = None, batch_size: int = 1):
         self.cfg = cfg if cfg is not None else PhysVLAConfig()
         self.cfg.validate()
-        self.layout = self.cfg.action_layout
-        self.batch_size = int(batch_size)
-        self.branch_a = PhaseCorrector(self.cfg, self.batch_size)
+        lay = self.layout = self.cfg.action_layout
+        self.batch_size = b = int(batch_size)
         self.branch_b = ELGate(self.cfg) if self.cfg.mode == "phys_el" and self.cfg.el_mode != "off" else None
         self.passthrough_counts: Counter = Counter()
         self.steps = 0
         self.last: StepDiagnostics | None = None
-        self._temporal = np.zeros((self.batch_size, 3))
-        self._temporal_init = np.zeros(self.batch_size, dtype=bool)
+        self._pos = lay.pos_index
+        self._grip = -1 if lay.gripper is None else lay.gripper
+        c = self.cfg
+        self._p_a = np.array(
+            [c.beta, *c.grasp_offset_m, c.lift_bias_m / lay.metres_per_unit, c.alpha_transport, c.d_thresh_m,
+             lay.metres_per_unit, lay.gripper_open, lay.low, lay.high],
+            dtype=np.float64,
+        )
+        self._ema = np.zeros((b, 3))  # transport EMA (Branch A), action units
+        self._in_tr = np.zeros((b, 1), np.bool_)
+        self._t_ema = np.zeros((b, 3))  # temporal-mode EMA, action units
+        self._t_init = np.zeros((b, 1), np.bool_)
+        self._offsets: dict[int, np.ndarray] = {}
         self._warned: set[str] = set()
 
     def reset(self, env_ids=None) -> None:
         """Forget per-env memory (EMAs) for env_ids (all envs if None), e.g. at an episode start."""
         sel = slice(None) if env_ids is None else np.asarray(env_ids)
-        self.branch_a.reset(None if env_ids is None else sel)
-        self._temporal[sel] = 0.0
-        self._temporal_init[sel] = False
+        for buf in (self._ema, self._in_tr, self._t_ema, self._t_init):
+            buf[sel] = 0
 
     # ------------------------------------------------------------------ API boundary
     def _check(self, actions, state: PhysState) -> np.ndarray:
@@ -102,6 +190,8 @@ class Corrector:
             )
         if state.batch_size != self.batch_size:
             raise ValueError(f"physvla: state holds {state.batch_size} envs, corrector has {self.batch_size}")
+        if self.branch_b is not None:
+            self.branch_b.check_arm(state.n_joints)
         return a
 
     def __call__(self, actions, state: PhysState) -> np.ndarray:
@@ -110,121 +200,70 @@ class Corrector:
         a = self._check(actions, state)
         self.steps += self.batch_size
         if self.cfg.mode == "baseline":
-            self.last = self._diag_passthrough(a[:, 0] if a.ndim == 3 else a, np.zeros(self.batch_size, bool))
+            self.last = self._identity_diag(a.shape[-1])
             self.last.t_total_s = time.perf_counter() - t0
             return a.copy()
+        flat = state.pack()
+        n = state.n_joints
         if a.ndim == 2:
-            out = self._step(a, state, commit=True)
+            out = self._step(a, flat, n, commit=True)
         else:
             out = a.copy()
-            steps = range(a.shape[1]) if self.cfg.chunk == "all" else range(1)
-            for t in steps:
-                out[:, t] = self._step(a[:, t], state, commit=(t == 0), record=(t == 0))
+            for t in range(a.shape[1] if self.cfg.chunk == "all" else 1):
+                out[:, t] = self._step(np.ascontiguousarray(a[:, t]), flat, n, commit=(t == 0))
         self.last.t_total_s = time.perf_counter() - t0
         return out
 
     # ------------------------------------------------------------------ one step
-    def _step(self, a_raw: np.ndarray, state: PhysState, commit: bool, record: bool = True) -> np.ndarray:
-        ok = state.valid & state.is_finite()
-        reasons = {}
-        if not ok.all():
-            reasons["invalid_state"] = ~state.valid
-            reasons["nonfinite_state"] = state.valid & ~ok
-        finite_a = np.isfinite(a_raw).all(axis=1)
-        if not finite_a.all():
-            reasons["nonfinite_action"] = ~finite_a
-            ok &= finite_a
-        commit_mask = ok & commit
+    def _phase_offsets(self, n: int) -> np.ndarray:
+        if n not in self._offsets:
+            f = field_offsets(n)
+            self._offsets[n] = np.array([f[k] for k in ("valid", "eef_pos", "obj_pos", "obj_rest_z", "target_pos")])
+        return self._offsets[n]
 
-        try:
-            if not ok.all():  # keep bad rows from poisoning the batched linear algebra
-                state = _with_placeholder_rows(state, ~ok)
-            out, diag = self._correct(np.where(ok[:, None], a_raw, 0.0), state, commit_mask)
-        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as e:
-            if isinstance(e, ValueError) and "physvla" in str(e):
-                raise
-            reasons = {f"error:{type(e).__name__}": np.ones(self.batch_size, bool)}
-            ok = np.zeros(self.batch_size, bool)
-            self._warn_once(type(e).__name__, f"physvla: correction failed ({e}); passing actions through")
-            out, diag = a_raw.copy(), self._diag_passthrough(a_raw, np.ones(self.batch_size, bool))
-
-        bad_out = ok & ~np.isfinite(out).all(axis=1)
-        if bad_out.any():
-            reasons["nonfinite_output"] = bad_out
-            ok &= ~bad_out
-        out = np.where(ok[:, None], out, a_raw)
-        if record:
-            for why, mask in reasons.items():
-                n = int(mask.sum())
-                if n:
-                    self.passthrough_counts[why] += n
-                    self._warn_once(why, f"physvla: passing the policy's action through unchanged ({why}); "
-                                    "see Corrector.passthrough_counts")
-            diag.passthrough = ~ok
-            diag.phase = np.where(ok, diag.phase, -1).astype(np.int8)
-            diag.deviation = np.where(ok, np.abs(out - a_raw).max(axis=1), 0.0)
-            self.last = diag
-        return out
-
-    def _correct(self, a_raw: np.ndarray, s: PhysState, commit: np.ndarray):
+    def _step(self, a_raw: np.ndarray, flat: np.ndarray, n: int, commit: bool) -> np.ndarray:
+        """One control step for all envs. Only the committed step (a chunk's first) updates memory
+        and the diagnostics."""
         cfg, lay = self.cfg, self.layout
-        nan = np.full(self.batch_size, np.nan)
         t0 = time.perf_counter()
-        d_obj = xy_distance(s.eef_pos, s.obj_pos)
-        d_tgt = xy_distance(s.eef_pos, s.target_pos)
-        lift = s.obj_pos[:, 2] - s.obj_rest_z
-        phase = detect_phase(d_obj, d_tgt, lift, cfg.delta_grasp_m, cfg.h_lift_m)
-        weights = np.zeros_like(a_raw)
-        r_el = r_energy = nan
-        t_b = 0.0
-
-        if cfg.mode == "temporal":
-            out = self._temporal_ema(a_raw, commit)
-            t_a = time.perf_counter() - t0
+        temporal = cfg.mode == "temporal"
+        a_phys, phase, geo, status = _phase_step(
+            a_raw, flat, self._phase_offsets(n), self._pos, self._grip, self._p_a, cfg.delta_grasp_m, cfg.h_lift_m,
+            self._ema, self._in_tr, self._t_ema, self._t_init, commit, temporal, cfg.alpha_temporal,
+        )
+        t1 = time.perf_counter()
+        if self.branch_b is not None:
+            g = self.branch_b
+            a_phys, weights, r_diag = el_gate(a_raw, a_phys, flat, g.offsets(n), n, self._pos, g.params, g.flags, status, SINGULAR)
         else:
-            a_phys = self.branch_a(a_raw, phase, s.eef_pos, s.obj_pos, d_tgt, commit=commit)
-            t1 = time.perf_counter()
-            t_a = t1 - t0
-            if self.branch_b is not None:
-                a_phys, r_el, r_energy, weights = self.branch_b(a_raw, a_phys, s)
-                t_b = time.perf_counter() - t1
-            out = (1.0 - cfg.cap) * a_raw + cfg.cap * a_phys  # eq. 2
-            if cfg.gripper_rule == "veto" and lay.gripper is not None:
-                out[:, lay.gripper] = np.where(phase == Phase.APPROACH, lay.gripper_open, out[:, lay.gripper])
-        np.clip(out, lay.low, lay.high, out=out)
-        diag = StepDiagnostics(phase, d_obj, d_tgt, lift, r_el, r_energy, weights, None, None, t_a, t_b)
-        return out, diag
-
-    def _temporal_ema(self, a_raw: np.ndarray, commit: np.ndarray) -> np.ndarray:
-        pos = self.layout.pos_index
-        alpha = self.cfg.alpha_temporal
-        raw_pos = a_raw[:, pos]
-        prev = np.where(self._temporal_init[:, None], self._temporal, raw_pos)
-        ema = alpha * prev + (1.0 - alpha) * raw_pos
-        self._temporal = np.where(commit[:, None], ema, self._temporal)
-        self._temporal_init |= commit
-        out = a_raw.copy()
-        out[:, pos] = ema
+            weights, r_diag = np.zeros_like(a_raw), np.full((self.batch_size, 2), np.nan)
+        cap = 1.0 if temporal else cfg.cap  # the temporal baseline is applied in full
+        veto = cfg.gripper_rule == "veto" and not temporal
+        out, dev = _blend(a_raw, a_phys, phase, status, cap, self._grip, lay.gripper_open, veto, lay.low, lay.high)
+        t2 = time.perf_counter()
+        if commit:
+            if status.any():
+                self._count(status)
+                phase[status != OK] = -1
+            self.last = StepDiagnostics(
+                phase, geo[:, 0], geo[:, 1], geo[:, 2], r_diag[:, 0], r_diag[:, 1], weights, dev, status,
+                t1 - t0, t2 - t1,
+            )
         return out
 
-    def _diag_passthrough(self, a_raw: np.ndarray, passthrough: np.ndarray) -> StepDiagnostics:
+    def _count(self, status: np.ndarray) -> None:
+        for code in np.unique(status[status != OK]):
+            why = REASONS[code]
+            self.passthrough_counts[why] += int((status == code).sum())
+            if why not in self._warned:
+                self._warned.add(why)
+                warnings.warn(
+                    f"physvla: passing the policy's action through unchanged ({why}); see Corrector.passthrough_counts",
+                    RuntimeWarning, stacklevel=4,
+                )
+
+    def _identity_diag(self, a_dim: int) -> StepDiagnostics:
         b = self.batch_size
         nan = np.full(b, np.nan)
-        return StepDiagnostics(
-            np.full(b, -1, np.int8), nan, nan, nan, nan, nan, np.zeros_like(a_raw), np.zeros(b), passthrough
-        )
-
-    def _warn_once(self, key: str, msg: str) -> None:
-        if key not in self._warned:
-            self._warned.add(key)
-            warnings.warn(msg, RuntimeWarning, stacklevel=3)
-
-
-def _with_placeholder_rows(state: PhysState, bad: np.ndarray) -> PhysState:
-    """Copy of `state` whose `bad` rows hold a harmless record (M = I, dt = 1, zeros elsewhere)."""
-    flat = state.pack()
-    filler = PhysState.empty(1, state.n_joints)
-    filler.dt[:] = 1.0
-    filler.M[:] = np.eye(state.n_joints)
-    flat[bad] = filler.pack()[0]
-    return PhysState.unpack(flat)
+        return StepDiagnostics(np.full(b, -1, np.int8), nan, nan, nan, nan, nan, np.zeros((b, a_dim)), np.zeros(b),
+                               np.zeros(b, np.int8))

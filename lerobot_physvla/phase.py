@@ -6,120 +6,113 @@ Phases come from geometry alone (eq. 3):
     transport  object lifted, d_tgt_xy >= delta_grasp
     place      object lifted, d_tgt_xy <  delta_grasp
 where "lifted" means obj_z - obj_rest_z > h_lift (SPEC), and d_*_xy are horizontal distances
-from the end-effector, in metres. All functions are batched over B envs.
+from the end-effector, in metres.
+
+Corrections (App. A), on the candidate a_phys, in action units (metres / metres_per_unit):
+    approach   premature-grasp veto: gripper <- open
+    grasp      a_pos = beta (p* - p_eef) / scale + (1 - beta) a_raw_pos,   p* = p_obj + offset
+    transport  a_pos <- alpha a_pos_prev + (1 - alpha) (a_raw_pos + dz+ / scale e_z)
+    place      a_pos = min(1, d_tgt_xy / d_thresh) a_raw_pos                 (eq. 5)
+
+The per-env arithmetic is compiled with numba (microseconds an env-step, where small-array numpy
+costs ~40); `corrector.Corrector` runs it over B envs with per-env memory.
 """
 
 from __future__ import annotations
 
+import math
 from enum import IntEnum
 
 import numpy as np
+from numba import njit
 
-from .config import ActionLayout, PhysVLAConfig
+APPROACH, GRASP, TRANSPORT, PLACE = 0, 1, 2, 3
 
 
 class Phase(IntEnum):
-    APPROACH = 0
-    GRASP = 1
-    TRANSPORT = 2
-    PLACE = 3
+    APPROACH = APPROACH
+    GRASP = GRASP
+    TRANSPORT = TRANSPORT
+    PLACE = PLACE
 
 
 PHASE_NAMES = tuple(p.name.lower() for p in Phase)
 
 
-def xy_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def phase_of(d_obj_xy: float, d_tgt_xy: float, lift_m: float, delta_grasp_m: float, h_lift_m: float) -> int:
+    """Eq. 3 for one env; approach takes precedence (far from the object is approach, whatever it does)."""
+    if d_obj_xy >= delta_grasp_m:
+        return APPROACH
+    if lift_m > h_lift_m:
+        return PLACE if d_tgt_xy < delta_grasp_m else TRANSPORT
+    return GRASP
+
+
+@njit(cache=True)
+def detect_phase(d_obj_xy, d_tgt_xy, lift_m, delta_grasp_m, h_lift_m):
+    """Phase per env (eq. 3), int8 values of `Phase`, for (B,) distances and lifts in metres."""
+    out = np.empty(d_obj_xy.shape[0], np.int8)
+    for i in range(out.shape[0]):
+        out[i] = phase_of(d_obj_xy[i], d_tgt_xy[i], lift_m[i], delta_grasp_m, h_lift_m)
+    return out
+
+
+@njit(cache=True)
+def xy_distance(a, b):
     """Horizontal distance between (B, 3) points, metres."""
-    d = a[:, :2] - b[:, :2]
-    return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    out = np.empty(a.shape[0])
+    for i in range(a.shape[0]):
+        out[i] = math.hypot(a[i, 0] - b[i, 0], a[i, 1] - b[i, 1])
+    return out
 
 
-def detect_phase(
-    d_obj_xy: np.ndarray, d_tgt_xy: np.ndarray, lift_m: np.ndarray, delta_grasp_m: float, h_lift_m: float
-) -> np.ndarray:
-    """Phase per env (eq. 3), as int8 values of `Phase`.
+@njit(cache=True)
+def branch_a_row(a_raw, a_phys, phase, eef, obj, d_tgt, pos, grip, p, ema, in_transport, commit):
+    """Branch A for one env: writes a_phys (A,) from a_raw; updates the transport EMA if commit.
 
-    Args:
-        d_obj_xy: (B,) end-effector to object horizontal distance, m.
-        d_tgt_xy: (B,) end-effector to target horizontal distance, m.
-        lift_m: (B,) object height above its resting height, m.
+    p holds [beta, grasp offset x, y, z (m), lift bias (units), alpha_transport, d_thresh (m),
+    metres_per_unit, gripper_open, low, high]; ema (3,) and in_transport (1,) are this env's memory.
     """
-    lifted = lift_m > h_lift_m
-    near_tgt = d_tgt_xy < delta_grasp_m
-    phase = np.where(lifted, np.where(near_tgt, Phase.PLACE, Phase.TRANSPORT), Phase.GRASP)
-    # approach takes precedence: far from the object is approach whatever the object does.
-    phase = np.where(d_obj_xy >= delta_grasp_m, Phase.APPROACH, phase)
-    return phase.astype(np.int8)
+    beta, lift_u, alpha, d_thresh, scale = p[0], p[4], p[5], p[6], p[7]
+    for k in range(a_raw.shape[0]):
+        a_phys[k] = a_raw[k]
+    if phase == APPROACH:
+        if grip >= 0:
+            a_phys[grip] = p[8]  # premature-grasp veto: gripper open
+    elif phase == GRASP:
+        for k in range(3):  # metres -> action units with the layout's scale
+            a_phys[pos[k]] = beta * (obj[k] + p[1 + k] - eef[k]) / scale + (1.0 - beta) * a_raw[pos[k]]
+    elif phase == TRANSPORT:
+        first = not in_transport[0]
+        for k in range(3):
+            x = a_raw[pos[k]] + (lift_u if k == 2 else 0.0)
+            prev = x if first else ema[k]
+            e = alpha * prev + (1.0 - alpha) * x
+            a_phys[pos[k]] = e
+            if commit:
+                ema[k] = e
+    elif phase == PLACE:
+        ramp = min(1.0, d_tgt / d_thresh)  # eq. 5
+        for k in range(3):
+            a_phys[pos[k]] = ramp * a_raw[pos[k]]
+    if commit:
+        in_transport[0] = phase == TRANSPORT
+    for k in range(a_phys.shape[0]):
+        a_phys[k] = min(max(a_phys[k], p[9]), p[10])
 
 
-class PhaseCorrector:
-    """Branch A: a_phys = PhaseCorrect(phase, s_t, a_raw), with per-env transport EMA memory.
-
-    Attributes:
-        cfg: the corrector configuration (beta, lift bias, alpha_transport, d_thresh, ...).
-        ema: (B, 3) transport EMA of the position channels, action units.
-        in_transport: (B,) whether the previous step of that env was in transport; the EMA is
-            (re)initialised from the current input on the first step of each transport segment.
-    """
-
-    def __init__(self, cfg: PhysVLAConfig, batch_size: int):
-        self.cfg = cfg
-        self.layout: ActionLayout = cfg.action_layout
-        self.ema = np.zeros((batch_size, 3))
-        self.in_transport = np.zeros(batch_size, dtype=bool)
-        self._offset = np.asarray(cfg.grasp_offset_m, dtype=np.float64)
-        self._lift_units = np.array([0.0, 0.0, cfg.lift_bias_m / self.layout.metres_per_unit])
-
-    def reset(self, env_ids: np.ndarray | None = None) -> None:
-        sel = slice(None) if env_ids is None else env_ids
-        self.ema[sel] = 0.0
-        self.in_transport[sel] = False
-
-    def __call__(
-        self,
-        a_raw: np.ndarray,
-        phase: np.ndarray,
-        eef_pos: np.ndarray,
-        obj_pos: np.ndarray,
-        d_tgt_xy: np.ndarray,
-        commit: np.ndarray | bool = True,
-    ) -> np.ndarray:
-        """Phase-corrected candidate a_phys for (B, A) raw actions, clipped to the action bounds.
-
-        Args:
-            commit: (B,) or bool; where False the EMA memory is left untouched (used for the
-                not-yet-executed steps of an action chunk, and for pass-through envs).
-        """
-        cfg, lay = self.cfg, self.layout
-        pos = lay.pos_index
-        scale = lay.metres_per_unit
-        raw_pos = a_raw[:, pos]
-        ph = phase[:, None]
-
-        # grasp: a_pos = beta (p* - p_eef) / scale + (1 - beta) a_raw_pos   (App. A, grasp)
-        toward = (obj_pos + self._offset - eef_pos) / scale  # metres -> action units
-        grasp_pos = cfg.beta * toward + (1.0 - cfg.beta) * raw_pos
-
-        # transport: a_pos <- alpha a_pos_prev + (1 - alpha) (a_raw_pos + dz+ e_z)   (App. A, transport)
-        x = raw_pos + self._lift_units
-        prev = np.where(self.in_transport[:, None], self.ema, x)  # first transport step: EMA = x
-        ema = cfg.alpha_transport * prev + (1.0 - cfg.alpha_transport) * x
-
-        # place: min(1, d_tgt_xy / d_thresh) a_raw_pos   (eq. 5)
-        place_pos = np.minimum(1.0, d_tgt_xy / cfg.d_thresh_m)[:, None] * raw_pos
-
-        new_pos = np.where(
-            ph == Phase.GRASP, grasp_pos, np.where(ph == Phase.TRANSPORT, ema, np.where(ph == Phase.PLACE, place_pos, raw_pos))
-        )
-        a = a_raw.copy()
-        a[:, pos] = new_pos
-        # approach: premature-grasp veto, gripper forced open.
-        if lay.gripper is not None:
-            a[:, lay.gripper] = np.where(phase == Phase.APPROACH, lay.gripper_open, a_raw[:, lay.gripper])
-
-        is_tr = phase == Phase.TRANSPORT
-        self.ema = np.where((is_tr & commit)[:, None], ema, self.ema)
-        self.in_transport = np.where(commit, is_tr, self.in_transport)
-
-        np.clip(a, lay.low, lay.high, out=a)
-        return a
+@njit(cache=True)
+def ema_row(a_raw, out, pos, alpha, ema, initialised, commit):
+    """Uniform EMA on the position channels (the `temporal` baseline) for one env."""
+    for k in range(a_raw.shape[0]):
+        out[k] = a_raw[k]
+    for k in range(3):
+        x = a_raw[pos[k]]
+        prev = ema[k] if initialised[0] else x
+        e = alpha * prev + (1.0 - alpha) * x
+        out[pos[k]] = e
+        if commit:
+            ema[k] = e
+    if commit:
+        initialised[0] = True

@@ -35,6 +35,15 @@ def packed_size(n_joints: int) -> int:
     return sum(int(np.prod(shape(n_joints), dtype=int)) for _, shape in _FIELDS)
 
 
+def field_offsets(n_joints: int) -> dict[str, int]:
+    """Start of each field in the packed vector (the kernels read the packed rows directly)."""
+    out, i = {}, 0
+    for name, shape in _FIELDS:
+        out[name] = i
+        i += int(np.prod(shape(n_joints), dtype=int))
+    return out
+
+
 def n_joints_from_size(size: int) -> int:
     """Inverse of packed_size; raises if no joint count gives this length."""
     for n in range(1, 64):
@@ -45,9 +54,14 @@ def n_joints_from_size(size: int) -> int:
 
 @dataclass
 class PhysState:
-    """Physical state of B envs (see _FIELDS for each attribute's meaning and unit)."""
+    """Physical state of B envs (see _FIELDS for each attribute's meaning and unit).
 
-    valid: np.ndarray  # (B,) bool
+    A state made by `unpack` (or `empty`) keeps its fields as views into one (B, L) float64
+    buffer, so in-place edits (`st.M[0] = ...`) show in `pack()` at no cost; rebinding a field
+    (`st.M = ...`) detaches the buffer and `pack()` concatenates again.
+    """
+
+    valid: np.ndarray  # (B,) 1.0 = read successfully, 0.0 = not
     episode_step: np.ndarray  # (B,)
     dt: np.ndarray  # (B,)
     eef_pos: np.ndarray  # (B, 3)
@@ -75,16 +89,24 @@ class PhysState:
         """All-invalid state (the corrector passes every action through)."""
         return cls.unpack(np.zeros((batch_size, packed_size(n_joints))))
 
+    def __setattr__(self, name, value):
+        if name != "_flat" and getattr(self, "_flat", None) is not None:
+            object.__setattr__(self, "_flat", None)
+        object.__setattr__(self, name, value)
+
     def pack(self) -> np.ndarray:
-        """(B, packed_size(n)) float64 array with the fixed field layout."""
+        """(B, packed_size(n)) float64 array with the fixed field layout (no copy when it has one)."""
+        flat = getattr(self, "_flat", None)
+        if flat is not None:
+            return flat
         b = self.batch_size
         parts = [np.asarray(getattr(self, name), dtype=np.float64).reshape(b, -1) for name, _ in _FIELDS]
         return np.concatenate(parts, axis=1)
 
     @classmethod
     def unpack(cls, flat: np.ndarray) -> PhysState:
-        """Inverse of pack, for a (B, L) or (L,) array. Views into one float64 buffer."""
-        flat = np.asarray(flat, dtype=np.float64)
+        """Inverse of pack, for a (B, L) or (L,) array; fields are views into it (made C-contiguous float64)."""
+        flat = np.ascontiguousarray(flat, dtype=np.float64)
         if flat.ndim == 1:
             flat = flat[None]
         if flat.ndim != 2:
@@ -97,8 +119,9 @@ class PhysState:
             k = int(np.prod(s, dtype=int))
             out[name] = flat[:, i : i + k].reshape((b, *s))
             i += k
-        out["valid"] = out["valid"] > 0.5
-        return cls(**out)
+        st = cls(**out)
+        object.__setattr__(st, "_flat", flat)
+        return st
 
     def is_finite(self) -> np.ndarray:
         """(B,) True where every field of the env's record is finite."""

@@ -11,7 +11,7 @@ def test_pack_unpack_round_trip():
     back = PhysState.unpack(st.pack())
     for name in ("eef_pos", "obj_pos", "obj_rest_z", "M", "J_pos", "tau", "dt"):
         np.testing.assert_array_equal(getattr(back, name), getattr(st, name))
-    assert back.valid.dtype == bool and back.valid.all()
+    assert (back.valid == 1.0).all()
     assert st.pack().shape == (3, packed_size(7))
 
 
@@ -20,6 +20,15 @@ def test_sizes_identify_the_joint_count():
         assert n_joints_from_size(packed_size(n)) == n
     with pytest.raises(ValueError, match="matches no arm"):
         n_joints_from_size(5)
+
+
+def test_fields_are_views_until_rebound():
+    st = make_state(batch_size=2)
+    flat = st.pack()
+    st.M[0, 0, 0] = 42.0
+    assert st.pack() is flat and 42.0 in flat[0]
+    st.M = np.zeros_like(st.M)  # rebinding detaches the buffer
+    assert st.pack() is not flat and st.pack()[0].max() < 42.0
 
 
 def test_empty_is_invalid_and_nonfinite_is_detected():
