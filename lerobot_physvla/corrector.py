@@ -27,12 +27,9 @@ from numba import njit
 
 from .config import PhysVLAConfig
 from .dynamics import ELGate, el_gate
-from .phase import APPROACH, branch_a_row, ema_row, phase_of
-from .state import PhysState, field_offsets
+from .phase import APPROACH, phase_step
+from .state import NONFINITE_OUTPUT, OK, REASONS, SINGULAR, PhysState, field_offsets
 
-# Why an env's action was passed through unchanged (status codes of the kernels).
-REASONS = ("ok", "invalid_state", "nonfinite_state", "nonfinite_action", "singular_dynamics", "nonfinite_output")
-OK, INVALID_STATE, NONFINITE_STATE, NONFINITE_ACTION, SINGULAR, NONFINITE_OUTPUT = range(6)
 
 
 @dataclass
@@ -68,49 +65,6 @@ class StepDiagnostics:
     @property
     def passthrough(self) -> np.ndarray:
         return self.status != OK
-
-
-@njit(cache=True)
-def _phase_step(a_raw, flat, o, pos, grip, p, d_grasp, h_lift, ema, in_tr, t_ema, t_init, commit, temporal, alpha_t):
-    """Validity, geometry, phase and Branch A (or the temporal EMA) for every env."""
-    b, a_dim = a_raw.shape
-    a_phys = np.empty_like(a_raw)
-    phase = np.full(b, -1, np.int8)
-    geo = np.full((b, 3), np.nan)  # d_obj_xy, d_tgt_xy, lift (m)
-    status = np.zeros(b, np.int8)
-    for i in range(b):
-        row = flat[i]
-        finite = True
-        for k in range(row.shape[0]):
-            if not np.isfinite(row[k]):
-                finite = False
-                break
-        if not row[o[0]] > 0.5:
-            status[i] = INVALID_STATE
-        elif not finite:
-            status[i] = NONFINITE_STATE
-        else:
-            for k in range(a_dim):
-                if not np.isfinite(a_raw[i, k]):
-                    status[i] = NONFINITE_ACTION
-                    break
-        if status[i] != OK:
-            a_phys[i] = a_raw[i]
-            continue
-        eef = row[o[1] : o[1] + 3]
-        obj = row[o[2] : o[2] + 3]
-        tgt = row[o[4] : o[4] + 3]
-        d_obj = np.hypot(eef[0] - obj[0], eef[1] - obj[1])
-        d_tgt = np.hypot(eef[0] - tgt[0], eef[1] - tgt[1])
-        lift = obj[2] - row[o[3]]
-        geo[i, 0], geo[i, 1], geo[i, 2] = d_obj, d_tgt, lift
-        ph = phase_of(d_obj, d_tgt, lift, d_grasp, h_lift)  # eq. 3
-        phase[i] = ph
-        if temporal:
-            ema_row(a_raw[i], a_phys[i], pos, alpha_t, t_ema[i], t_init[i], commit)
-        else:
-            branch_a_row(a_raw[i], a_phys[i], ph, eef, obj, d_tgt, pos, grip, p, ema[i], in_tr[i], commit)
-    return a_phys, phase, geo, status
 
 
 @njit(cache=True)
@@ -227,7 +181,7 @@ class Corrector:
         cfg, lay = self.cfg, self.layout
         t0 = time.perf_counter()
         temporal = cfg.mode == "temporal"
-        a_phys, phase, geo, status = _phase_step(
+        a_phys, phase, geo, status = phase_step(
             a_raw, flat, self._phase_offsets(n), self._pos, self._grip, self._p_a, cfg.delta_grasp_m, cfg.h_lift_m,
             self._ema, self._in_tr, self._t_ema, self._t_init, commit, temporal, cfg.alpha_temporal,
         )

@@ -25,6 +25,8 @@ from numba import njit
 from .config import PhysVLAConfig
 from .state import field_offsets
 
+# numba caches a compiled function by its own file only: every cached kernel here calls njit
+# functions of this module alone, so editing this file invalidates all of them together.
 SOFT, GATED = 0, 1
 JOINT_DIAG, TASK_SPACE = 0, 1
 
@@ -344,6 +346,7 @@ class MujocoDynamicsOracle:
         self._scratch = mujoco.MjData(model)
         self._full_m = np.zeros((model.nv, model.nv))
         self._jacp = np.zeros((3, model.nv))
+        self._bias = np.zeros(model.nv)
         self._block = np.ix_(self.dof_ids, self.dof_ids)
 
     @property
@@ -358,20 +361,22 @@ class MujocoDynamicsOracle:
     def read(self, data: mujoco.MjData) -> dict[str, np.ndarray]:
         """q, qdot, M, bias, tau, J_pos of the arm at data's current state.
 
-        The live `data` is never written: its state is copied into a scratch MjData and
-        forwarded there, so reading cannot perturb the simulation (solver warm-start included).
+        The live `data` is never written: qpos/qvel are copied into a scratch MjData where only
+        what the corrector needs is recomputed (kinematics, composite inertia, RNE bias; no
+        collision detection, ~5x cheaper than mj_forward), so reading cannot perturb the
+        simulation. tau is the live qfrc_actuator + qfrc_applied: the torques being applied.
         """
         m, s = self.model, self._scratch
-        s.time = data.time
         s.qpos[:] = data.qpos
         s.qvel[:] = data.qvel
-        s.act[:] = data.act
-        s.ctrl[:] = data.ctrl
-        s.qfrc_applied[:] = data.qfrc_applied
-        s.xfrc_applied[:] = data.xfrc_applied
         s.mocap_pos[:] = data.mocap_pos
         s.mocap_quat[:] = data.mocap_quat
-        mujoco.mj_forward(m, s)
+        mujoco.mj_kinematics(m, s)
+        mujoco.mj_comPos(m, s)
+        mujoco.mj_makeM(m, s)  # qM: composite rigid body inertia + armature
+        mujoco.mj_comVel(m, s)
+        mujoco.mj_rne(m, s, 0, self._bias)  # C(q, qdot) qdot + G(q)
+        tau = data.qfrc_actuator[self.dof_ids] + data.qfrc_applied[self.dof_ids]
         data = s
         mujoco.mj_fullM(m, self._full_m, data.qM)  # mujoco 3.3.7 signature
         if self.site_id >= 0:
@@ -383,7 +388,7 @@ class MujocoDynamicsOracle:
             "q": data.qpos[self.qpos_ids].copy(),
             "qdot": data.qvel[d].copy(),
             "M": self._full_m[self._block],
-            "bias": data.qfrc_bias[d].copy(),
-            "tau": data.qfrc_actuator[d] + data.qfrc_applied[d],
+            "bias": self._bias[d].copy(),
+            "tau": tau,
             "J_pos": self._jacp[:, d].copy(),
         }

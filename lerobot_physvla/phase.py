@@ -1,7 +1,7 @@
 """Branch A: the phase finite-state machine and its four phase corrections (paper eq. 3, 5, App. A).
 
 Phases come from geometry alone (eq. 3):
-    approach   d_obj_xy >= delta_grasp
+    approach   d_obj_xy >= delta_grasp, object not lifted
     grasp      d_obj_xy <  delta_grasp, object not lifted
     transport  object lifted, d_tgt_xy >= delta_grasp
     place      object lifted, d_tgt_xy <  delta_grasp
@@ -26,6 +26,11 @@ from enum import IntEnum
 import numpy as np
 from numba import njit
 
+from .state import INVALID_STATE, NONFINITE_ACTION, NONFINITE_STATE, OK
+
+# numba caches a compiled function by its own file only: every cached kernel here calls njit
+# functions of this module alone, so editing this file invalidates all of them together.
+
 APPROACH, GRASP, TRANSPORT, PLACE = 0, 1, 2, 3
 
 
@@ -41,12 +46,15 @@ PHASE_NAMES = tuple(p.name.lower() for p in Phase)
 
 @njit(cache=True)
 def phase_of(d_obj_xy: float, d_tgt_xy: float, lift_m: float, delta_grasp_m: float, h_lift_m: float) -> int:
-    """Eq. 3 for one env; approach takes precedence (far from the object is approach, whatever it does)."""
-    if d_obj_xy >= delta_grasp_m:
-        return APPROACH
+    """Eq. 3 for one env.
+
+    Eq. 3 leaves "lifted and d_obj_xy >= delta_grasp" to both approach and transport/place. A
+    lifted object is in the hand (a rim grasp of a LIBERO bowl holds it ~5 cm off its origin, and
+    it swings), and approach's veto would open the gripper and drop it, so lifted wins.
+    """
     if lift_m > h_lift_m:
         return PLACE if d_tgt_xy < delta_grasp_m else TRANSPORT
-    return GRASP
+    return APPROACH if d_obj_xy >= delta_grasp_m else GRASP
 
 
 @njit(cache=True)
@@ -116,3 +124,51 @@ def ema_row(a_raw, out, pos, alpha, ema, initialised, commit):
             ema[k] = e
     if commit:
         initialised[0] = True
+
+
+@njit(cache=True)
+def phase_step(a_raw, flat, o, pos, grip, p, d_grasp, h_lift, ema, in_tr, t_ema, t_init, commit, temporal, alpha_t):
+    """Validity, geometry, phase and Branch A (or the temporal EMA) for B envs.
+
+    flat: (B, L) packed states; o: offsets of [valid, eef_pos, obj_pos, obj_rest_z, target_pos];
+    ema/in_tr and t_ema/t_init: per-env memory of Branch A and of the temporal mode.
+    Returns (a_phys (B, A), phase (B,) int8, geo (B, 3) [d_obj_xy, d_tgt_xy, lift] m, status (B,) int8).
+    """
+    b, a_dim = a_raw.shape
+    a_phys = np.empty_like(a_raw)
+    phase = np.full(b, -1, np.int8)
+    geo = np.full((b, 3), np.nan)  # d_obj_xy, d_tgt_xy, lift (m)
+    status = np.zeros(b, np.int8)
+    for i in range(b):
+        row = flat[i]
+        finite = True
+        for k in range(row.shape[0]):
+            if not np.isfinite(row[k]):
+                finite = False
+                break
+        if not row[o[0]] > 0.5:
+            status[i] = INVALID_STATE
+        elif not finite:
+            status[i] = NONFINITE_STATE
+        else:
+            for k in range(a_dim):
+                if not np.isfinite(a_raw[i, k]):
+                    status[i] = NONFINITE_ACTION
+                    break
+        if status[i] != OK:
+            a_phys[i] = a_raw[i]
+            continue
+        eef = row[o[1] : o[1] + 3]
+        obj = row[o[2] : o[2] + 3]
+        tgt = row[o[4] : o[4] + 3]
+        d_obj = np.hypot(eef[0] - obj[0], eef[1] - obj[1])
+        d_tgt = np.hypot(eef[0] - tgt[0], eef[1] - tgt[1])
+        lift = obj[2] - row[o[3]]
+        geo[i, 0], geo[i, 1], geo[i, 2] = d_obj, d_tgt, lift
+        ph = phase_of(d_obj, d_tgt, lift, d_grasp, h_lift)  # eq. 3
+        phase[i] = ph
+        if temporal:
+            ema_row(a_raw[i], a_phys[i], pos, alpha_t, t_ema[i], t_init[i], commit)
+        else:
+            branch_a_row(a_raw[i], a_phys[i], ph, eef, obj, d_tgt, pos, grip, p, ema[i], in_tr[i], commit)
+    return a_phys, phase, geo, status

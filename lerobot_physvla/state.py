@@ -11,6 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# Why the corrector passed an env's action through unchanged (status codes of its kernels).
+REASONS = ("ok", "invalid_state", "nonfinite_state", "nonfinite_action", "singular_dynamics", "nonfinite_output")
+OK, INVALID_STATE, NONFINITE_STATE, NONFINITE_ACTION, SINGULAR, NONFINITE_OUTPUT = range(6)
+
 # Fields in packing order: (name, shape given the arm's joint count n).
 _FIELDS = (
     ("valid", lambda n: ()),  # 1.0 if this record was read successfully, else 0.0

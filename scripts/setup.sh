@@ -17,9 +17,17 @@ if [ -z "$py" ]; then
 fi
 [ -n "$py" ] || { echo "setup: need Python >= 3.12 (lerobot 0.6.1); set PHYSVLA_PYTHON" >&2; exit 1; }
 
-# Bump SETUP_REV when this script installs something pyproject.toml does not name.
+# The key is the dependency set only (requires-python, dependencies, optional-dependencies), so
+# editing entry points or metadata reuses the venv. Bump SETUP_REV when this script installs
+# something pyproject.toml does not name.
 SETUP_REV=1
-key="$( (cat pyproject.toml; echo "$SETUP_REV") | sha256sum | cut -c1-12)"
+deps="$("$py" - <<'PY'
+import json, tomllib
+p = tomllib.load(open("pyproject.toml", "rb"))["project"]
+print(json.dumps([p.get("requires-python"), p.get("dependencies"), p.get("optional-dependencies")], sort_keys=True))
+PY
+)"
+key="$(printf '%s\n%s\n' "$deps" "$SETUP_REV" | sha256sum | cut -c1-12)"
 venv="$cache/venv-$key"
 mkdir -p "$cache"
 if [ ! -f "$venv/.complete" ]; then
@@ -40,5 +48,10 @@ else
   "$venv/bin/python" -m pip install --quiet --no-deps -e .
 fi
 ln -sfn "$venv" .venv
+touch "$venv/.last_used"
+# Keep this venv and the most recently used other one; older dependency sets are ~7 GB each.
+ls -1dt "$cache"/venv-*/.last_used 2>/dev/null | tail -n +3 | while read -r f; do
+  old="$(dirname "$f")"; echo "setup: removing unused venv $old"; rm -rf "$old"
+done
 "$venv/bin/physvla-libero-setup"
 echo "setup: ready: $root/.venv -> $venv"

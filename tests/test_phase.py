@@ -25,7 +25,8 @@ def phase_of(d_obj, d_tgt, lift):
         (0.0599, 1.0, 0.0201, Phase.TRANSPORT),
         (0.0599, 0.06, 0.0201, Phase.TRANSPORT),  # at the target envelope: transport (>=)
         (0.0599, 0.0599, 0.0201, Phase.PLACE),
-        (0.06, 0.0, 0.5, Phase.APPROACH),  # far from the object is approach even if it flies
+        (0.06, 0.0, 0.5, Phase.PLACE),  # lifted wins over approach: never veto a carried object
+        (0.2, 1.0, 0.0201, Phase.TRANSPORT),
         (0.0, 0.0, -0.01, Phase.GRASP),  # object pushed below its resting height
     ],
 )
