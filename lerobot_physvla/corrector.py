@@ -153,10 +153,6 @@ class Corrector:
         t0 = time.perf_counter()
         a = self._check(actions, state)
         self.steps += self.batch_size
-        if self.cfg.mode == "baseline":
-            self.last = self._identity_diag(a.shape[-1])
-            self.last.t_total_s = time.perf_counter() - t0
-            return a.copy()
         flat = state.pack()
         n = state.n_joints
         if a.ndim == 2:
@@ -186,14 +182,19 @@ class Corrector:
             self._ema, self._in_tr, self._t_ema, self._t_init, commit, temporal, cfg.alpha_temporal,
         )
         t1 = time.perf_counter()
-        if self.branch_b is not None:
-            g = self.branch_b
-            a_phys, weights, r_diag = el_gate(a_raw, a_phys, flat, g.offsets(n), n, self._pos, g.params, g.flags, status, SINGULAR)
+        weights, r_diag = np.zeros_like(a_raw), np.full((self.batch_size, 2), np.nan)
+        if cfg.mode == "baseline":  # identity; phase and geometry above are kept for diagnostics
+            status[:] = OK
+            out, dev = a_raw.copy(), np.zeros(self.batch_size)
         else:
-            weights, r_diag = np.zeros_like(a_raw), np.full((self.batch_size, 2), np.nan)
-        cap = 1.0 if temporal else cfg.cap  # the temporal baseline is applied in full
-        veto = cfg.gripper_rule == "veto" and not temporal
-        out, dev = _blend(a_raw, a_phys, phase, status, cap, self._grip, lay.gripper_open, veto, lay.low, lay.high)
+            if self.branch_b is not None:
+                g = self.branch_b
+                a_phys, weights, r_diag = el_gate(
+                    a_raw, a_phys, flat, g.offsets(n), n, self._pos, g.params, g.flags, status, SINGULAR
+                )
+            cap = 1.0 if temporal else cfg.cap  # the temporal baseline is applied in full
+            veto = cfg.gripper_rule == "veto" and not temporal
+            out, dev = _blend(a_raw, a_phys, phase, status, cap, self._grip, lay.gripper_open, veto, lay.low, lay.high)
         t2 = time.perf_counter()
         if commit:
             if status.any():
@@ -215,9 +216,3 @@ class Corrector:
                     f"physvla: passing the policy's action through unchanged ({why}); see Corrector.passthrough_counts",
                     RuntimeWarning, stacklevel=4,
                 )
-
-    def _identity_diag(self, a_dim: int) -> StepDiagnostics:
-        b = self.batch_size
-        nan = np.full(b, np.nan)
-        return StepDiagnostics(np.full(b, -1, np.int8), nan, nan, nan, nan, nan, np.zeros((b, a_dim)), np.zeros(b),
-                               np.zeros(b, np.int8))
