@@ -7,6 +7,8 @@ the env one step later), the phase timeline, residuals, pass-through reasons and
 computes the metrics of `metrics.py`. `write(dir)` saves
     physvla_episodes.jsonl     one JSON record per episode (arrays included)
     physvla_diagnostics.json   aggregates: success, metrics, firing rates, overhead, pass-throughs
+    physvla_states.npz         (only with save_states; PHYSVLA_SAVE_STATES=1 in lerobot-eval) the
+                               packed states, raw and corrected actions of every step, float64
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ class _Episode:
         self.raw, self.corrected, self.executed = [], [], []
         self.phase, self.r_el, self.r_energy, self.status = [], [], [], []
         self.eef, self.d_obj, self.d_tgt, self.t_us = [], [], [], []
+        self.states = []  # packed state rows, kept only when the recorder saves states
         self.success = False
         self.dt = 0.05
 
@@ -87,8 +90,9 @@ class EpisodeRecorder:
         episodes: finished and running episodes, in start order.
     """
 
-    def __init__(self, horizon: int | None = None):
+    def __init__(self, horizon: int | None = None, save_states: bool = False):
         self.horizon = horizon
+        self.save_states = save_states
         self.episodes: list[_Episode] = []
         self._open: dict[int, _Episode] = {}
         self._last_step: dict[int, float] = {}
@@ -132,6 +136,8 @@ class EpisodeRecorder:
             ep.d_obj.append(float(diag.d_obj_xy[i]))
             ep.d_tgt.append(float(diag.d_tgt_xy[i]))
             ep.t_us.append(t_total_s * 1e6 / b)
+            if self.save_states:
+                ep.states.append(state.pack()[i].copy())
 
     def records(self) -> list[dict]:
         return [ep.to_record(self.horizon) for ep in self.episodes]
@@ -175,4 +181,11 @@ class EpisodeRecorder:
         if config is not None:
             summary["physvla_config"] = config
         (out / "physvla_diagnostics.json").write_text(json.dumps(summary, indent=2))
+        if self.save_states:  # exact replay material: states and actions in float64
+            arrays = {}
+            for k, ep in enumerate(self.episodes):
+                arrays[f"ep{k}_states"] = np.asarray(ep.states)
+                arrays[f"ep{k}_raw"] = np.asarray(ep.raw)
+                arrays[f"ep{k}_corrected"] = np.asarray(ep.corrected)
+            np.savez_compressed(out / "physvla_states.npz", **arrays)
         return out / "physvla_diagnostics.json"

@@ -124,17 +124,14 @@ def activate_eval(argv: list[str]) -> None:
     if cfg is None:
         return
 
-    def make_step():
-        step = PhysVLACorrectorStep(config=cfg.to_dict())
-        step._physvla_recorder = EpisodeRecorder()
-        step.listeners.append(step._physvla_recorder)
-        return step
-
-    def attach(step):  # a checkpoint that ships the corrector step gets a recorder too
+    def attach(step):  # record every step of the evaluation (also a checkpoint's own corrector)
         if getattr(step, "_physvla_recorder", None) is None:
-            step._physvla_recorder = EpisodeRecorder()
+            step._physvla_recorder = EpisodeRecorder(save_states=os.environ.get("PHYSVLA_SAVE_STATES") == "1")
             step.listeners.append(step._physvla_recorder)
         return step
+
+    def make_step():
+        return attach(PhysVLACorrectorStep(config=cfg.to_dict()))
 
     lerobot_compat.install_eval_hook(make_step, _write_diagnostics, attach)
 

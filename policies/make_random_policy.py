@@ -1,10 +1,11 @@
 """Make a LeRobot policy with random weights through lerobot's own factory, saved locally.
 
-    .venv/bin/python policies/make_random_policy.py OUT_DIR [--type act|diffusion] [--seed 0]
+    .venv/bin/python policies/make_random_policy.py OUT_DIR [--type act|diffusion] [--inputs state|image]
 
-State-only inputs, as the `libero_physvla` env gives them with --env.cameras=false:
+--inputs state (default): what the `libero_physvla` env gives with --env.cameras=false,
 observation.state (8: eef xyz, axis-angle, 2 finger joints) and observation.environment_state
-(6: object xyz, target xyz); output: the 7-D LIBERO action. Normalisation stats are identity
+(6: object xyz, target xyz). --inputs image: observation.state and LIBERO's agent-view camera
+(observation.images.image, 3x360x360), for plain `--env.type=libero`. Output: the 7-D action. Normalisation stats are identity
 (mean 0, std 1; min -1, max 1), so the processors are complete. Used by the tests and docs to
 exercise the real lerobot-eval path without any hub download.
 """
@@ -20,13 +21,20 @@ from lerobot.envs.configs import LiberoEnv
 from lerobot.policies.factory import make_policy, make_policy_config, make_pre_post_processors
 
 INPUTS = {
-    "observation.state": PolicyFeature(type=FeatureType.STATE, shape=(8,)),
-    "observation.environment_state": PolicyFeature(type=FeatureType.ENV, shape=(6,)),
+    "state": {
+        "observation.state": PolicyFeature(type=FeatureType.STATE, shape=(8,)),
+        "observation.environment_state": PolicyFeature(type=FeatureType.ENV, shape=(6,)),
+    },
+    "image": {
+        "observation.state": PolicyFeature(type=FeatureType.STATE, shape=(8,)),
+        "observation.images.image": PolicyFeature(type=FeatureType.VISUAL, shape=(3, 360, 360)),
+    },
 }
 SMALL = {
     "act": dict(chunk_size=10, n_action_steps=10, dim_model=64, dim_feedforward=128, n_heads=4,
-                n_encoder_layers=1, n_decoder_layers=1, use_vae=False),
-    "diffusion": dict(n_obs_steps=2, horizon=16, n_action_steps=8, down_dims=(32, 64), num_inference_steps=4),
+                n_encoder_layers=1, n_decoder_layers=1, use_vae=False, pretrained_backbone_weights=None),
+    "diffusion": dict(n_obs_steps=2, horizon=16, n_action_steps=8, down_dims=(32, 64), num_inference_steps=4,
+                      pretrained_backbone_weights=None),
 }
 
 
@@ -34,6 +42,9 @@ def identity_stats() -> dict:
     stats = {}
     for key, dim in (("observation.state", 8), ("observation.environment_state", 6), ("action", 7)):
         stats[key] = {"mean": torch.zeros(dim), "std": torch.ones(dim), "min": -torch.ones(dim), "max": torch.ones(dim)}
+    shape = (3, 1, 1)
+    stats["observation.images.image"] = {"mean": torch.zeros(shape), "std": torch.ones(shape),
+                                         "min": torch.zeros(shape), "max": torch.ones(shape)}
     return stats
 
 
@@ -41,10 +52,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("out")
     ap.add_argument("--type", default="act", choices=sorted(SMALL))
+    ap.add_argument("--inputs", default="state", choices=sorted(INPUTS))
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
     torch.manual_seed(args.seed)
-    cfg = make_policy_config(args.type, device="cpu", input_features=dict(INPUTS), **SMALL[args.type])
+    cfg = make_policy_config(args.type, device="cpu", input_features=dict(INPUTS[args.inputs]), **SMALL[args.type])
     policy = make_policy(cfg, env_cfg=LiberoEnv(task="libero_spatial"))
     pre, post = make_pre_post_processors(cfg, dataset_stats=identity_stats())
     policy.save_pretrained(args.out)
