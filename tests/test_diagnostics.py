@@ -1,0 +1,38 @@
+"""Episode splitting of the recorder: batches, successes, frozen sub-envs, executed-action echo."""
+
+import numpy as np
+
+from lerobot_physvla.config import PhysVLAConfig
+from lerobot_physvla.corrector import Corrector
+from lerobot_physvla.diagnostics import EpisodeRecorder
+
+from conftest import make_state
+
+
+def feed(rec, corr, steps, success, executed):
+    st = make_state(batch_size=2)
+    st.episode_step[:] = steps
+    extra = np.zeros((2, 9))
+    extra[:, 1] = success
+    extra[:, 2:] = executed
+    raw = np.full((2, 7), 0.1)
+    out = corr(raw, st)
+    rec(raw, out, st, extra, corr.last, 1e-5)
+
+
+def test_recorder_splits_episodes_and_stops_at_success(tmp_path):
+    rec, corr = EpisodeRecorder(horizon=10), Corrector(PhysVLAConfig(), 2)
+    feed(rec, corr, [0, 0], [0, 0], 0.0)
+    feed(rec, corr, [1, 1], [0, 0], 0.5)  # both executed 0.5 at step 0
+    feed(rec, corr, [2, 2], [1, 0], 0.6)  # env 0 succeeded with its step-1 action
+    feed(rec, corr, [0, 3], [0, 0], 0.7)  # env 0 autoreset (ignored until the next batch); env 1 goes on
+    feed(rec, corr, [0, 3], [0, 0], 0.7)  # env 1 frozen: same step replayed, ignored
+    feed(rec, corr, [0, 0], [0, 0], 0.0)  # a new batch: both envs start new episodes
+    recs = rec.records()
+    assert [(r["env_index"], r["steps"], r["success"]) for r in recs] == [(0, 2, True), (1, 4, False), (0, 1, False), (1, 1, False)]
+    assert recs[0]["executed_actions"][0] == [0.5] * 7 and recs[0]["executed_actions"][1] == [0.6] * 7
+    assert recs[0]["efficiency"] == 0.8 and recs[1]["efficiency"] == 0.0
+    s = rec.summary()
+    assert s["episodes"] == 4 and s["success_rate"] == 0.25
+    rec.write(tmp_path, config={"mode": "phys_el"})
+    assert (tmp_path / "physvla_episodes.jsonl").read_text().count("\n") == 4
