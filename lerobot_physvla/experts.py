@@ -33,31 +33,53 @@ class ExpertConfig:
     """
 
     hover_m: float = 0.10
-    grasp_offset_m: tuple[float, float, float] = (-0.045, 0.0, 0.035)
-    place_offset_m: tuple[float, float, float] = (-0.045, 0.0, 0.07)
+    grasp_offset_m: tuple[float, float, float] = (0.0, -0.047, 0.035)
+    place_offset_m: tuple[float, float, float] = (0.0, -0.047, 0.07)
     close_steps: int = 12
     release_steps: int = 8
     gain: float = 0.6
     tol_m: float = 0.012
+    # Injectable failure modes of the paper (all off by default; drawn per episode from `seed`).
+    action_noise: float = 0.0  # sigma of Gaussian noise on the x, y action channels, action units
+    aim_noise_m: float = 0.0  # sigma of a lateral (x, y) grasp-aim offset, m
+    place_bias_m: float = 0.0  # persistent x, y bias at place: direction ~ U(0, 2 pi), size ~ U(0, this), m
+    premature_close: float = 0.0  # probability that the gripper closes during the approach
+    no_decel: bool = False  # full-speed moves to the target (no deceleration profile)
+    seed: int = 0
 
 
 class PickPlaceExpert:
     """One env's scripted expert; call `reset()` at each episode start, then `act(...)` per step."""
 
     STAGES = ("hover_obj", "descend", "close", "lift", "hover_tgt", "lower", "release", "done")
+    STALL_STEPS = 15
 
     def __init__(self, layout: ActionLayout = LIBERO_OSC_POSE, cfg: ExpertConfig | None = None):
         self.layout = layout
         self.cfg = cfg or ExpertConfig()
+        self.rng = np.random.default_rng(self.cfg.seed)
         self.reset()
 
-    def reset(self) -> None:
+    def reset(self, seed: int | None = None) -> None:
+        """New episode: stage machine restarts and the episode's failure draws are made."""
+        c = self.cfg
+        if seed is not None:
+            self.rng = np.random.default_rng(seed)
         self.stage = 0
         self.count = 0
+        self._best, self._stall = np.inf, 0
+        self.aim = np.append(self.rng.normal(0.0, c.aim_noise_m, 2), 0.0) if c.aim_noise_m > 0 else np.zeros(3)
+        theta, size = self.rng.uniform(0, 2 * np.pi), self.rng.uniform(0, c.place_bias_m)
+        self.place_bias = np.array([np.cos(theta) * size, np.sin(theta) * size, 0.0])
+        self.close_early = bool(self.rng.uniform() < c.premature_close)
 
-    def _move(self, eef: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, float]:
+    def _move(self, eef: np.ndarray, goal: np.ndarray, fast: bool = False) -> tuple[np.ndarray, float]:
         err = goal - eef
-        return np.clip(self.cfg.gain * err / self.layout.metres_per_unit, -1.0, 1.0), float(np.linalg.norm(err))
+        d = self.cfg.gain * err / self.layout.metres_per_unit
+        if fast:  # no deceleration: full speed along the error until within tolerance
+            n = np.abs(d).max()
+            d = d / n if n > 1e-9 and np.linalg.norm(err) > self.cfg.tol_m else d
+        return np.clip(d, -1.0, 1.0), float(np.linalg.norm(err))
 
     def act(self, eef_pos: np.ndarray, obj_pos: np.ndarray, target_pos: np.ndarray) -> np.ndarray:
         c, lay = self.cfg, self.layout
@@ -65,12 +87,14 @@ class PickPlaceExpert:
         close = -lay.gripper_open
         grip = lay.gripper_open
         name = self.STAGES[self.stage]
-        grasp = obj_pos + np.asarray(c.grasp_offset_m)
-        place = target_pos + np.asarray(c.place_offset_m)
+        grasp = obj_pos + np.asarray(c.grasp_offset_m) + self.aim
+        place = target_pos + np.asarray(c.place_offset_m) + self.place_bias
         up = np.array([0.0, 0.0, c.hover_m])
         if name == "hover_obj":
             d, err = self._move(eef_pos, grasp + up)
             done = np.linalg.norm((grasp - eef_pos)[:2]) < c.tol_m
+            if self.close_early and np.linalg.norm((grasp - eef_pos)[:2]) < 0.12:
+                grip = close  # premature close, mid-flight
         elif name == "descend":
             d, err = self._move(eef_pos, grasp)
             done = err < c.tol_m
@@ -78,23 +102,32 @@ class PickPlaceExpert:
             d, _ = self._move(eef_pos, grasp)
             grip, self.count = close, self.count + 1
             done = self.count >= c.close_steps
-        elif name == "lift":
-            d, err = self._move(eef_pos, np.array([*eef_pos[:2], place[2] + c.hover_m]))
+        elif name == "lift":  # clear both the start and the target heights
+            d, err = self._move(eef_pos, np.array([*eef_pos[:2], max(place[2], grasp[2]) + c.hover_m]))
             grip, done = close, err < c.tol_m
         elif name == "hover_tgt":
-            d, _ = self._move(eef_pos, place + up)
+            d, _ = self._move(eef_pos, place + up, fast=c.no_decel)
             grip, done = close, np.linalg.norm((place - eef_pos)[:2]) < c.tol_m
         elif name == "lower":
-            d, err = self._move(eef_pos, place)
+            d, err = self._move(eef_pos, place, fast=c.no_decel)
             grip, done = close, err < c.tol_m
         elif name == "release":
             d, self.count = np.zeros(3), self.count + 1
             done = self.count >= c.release_steps
         else:
             d, done = self._move(eef_pos, place + up)[0], False
+        if name in ("hover_obj", "descend", "lift", "hover_tgt", "lower"):
+            # a blocked move (contact, workspace edge) counts as done after STALL_STEPS without progress
+            e = float(np.linalg.norm((grasp if name in ("hover_obj", "descend") else place) - eef_pos))
+            self._stall = 0 if e < self._best - 0.002 else self._stall + 1
+            self._best = min(self._best, e)
+            done = done or self._stall >= self.STALL_STEPS
         if done:
             self.stage = min(self.stage + 1, len(self.STAGES) - 1)
             self.count = 0
+            self._best, self._stall = np.inf, 0
+        if c.action_noise > 0:
+            d = d + np.append(self.rng.normal(0.0, c.action_noise, 2), 0.0)
         a[list(lay.pos)] = d
         if lay.gripper is not None:
             a[lay.gripper] = grip

@@ -144,7 +144,7 @@ def activate(argv: list[str] | None = None) -> None:
     """Entry point of the plugin import (see module docstring)."""
     if os.environ.get("PHYSVLA_DISABLE") == "1":
         return
-    from . import lerobot_envs, lerobot_steps  # noqa: F401 - registers env type and steps
+    from . import lerobot_envs, lerobot_steps, scripted_policy  # noqa: F401 - registers types and steps
 
     argv = sys.argv if argv is None else argv
     if argv and _is_lerobot_eval(argv[0]):
