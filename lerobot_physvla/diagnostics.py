@@ -139,6 +139,23 @@ class EpisodeRecorder:
             if self.save_states:
                 ep.states.append(state.pack()[i].copy())
 
+    def apply_env_successes(self, per_task: dict[int, list[bool]]) -> None:
+        """Take success from the env's own record (lerobot's eval_info.json), episode by episode.
+
+        The postprocessor cannot see the outcome of an episode's last step when no further
+        policy call follows it (the batch's last env to finish), so the env's word is final.
+        Episodes of a task are matched in start order (batch by batch, env index within).
+        """
+        by_task: dict[int, list[_Episode]] = {}
+        for ep in self.episodes:
+            by_task.setdefault(ep.task_id, []).append(ep)
+        for task, successes in per_task.items():
+            eps = by_task.get(task, [])
+            if len(eps) != len(successes):
+                continue  # cannot be matched one to one: keep what was observed
+            for ep, ok in zip(eps, successes):
+                ep.success = bool(ok)
+
     def records(self) -> list[dict]:
         return [ep.to_record(self.horizon) for ep in self.episodes]
 

@@ -13,6 +13,7 @@ plugin off entirely.
 from __future__ import annotations
 
 import dataclasses
+import json
 import logging
 import os
 import sys
@@ -98,6 +99,10 @@ def _write_diagnostics(cfg, step) -> None:
 
     task = str(getattr(cfg.env, "task", "")).split(",")[0]
     recorder.horizon = getattr(cfg.env, "episode_length", None) or TASK_SUITE_MAX_STEPS.get(task)
+    info = Path(cfg.output_dir) / "eval_info.json"
+    if info.is_file():
+        per_task = json.loads(info.read_text()).get("per_task", [])
+        recorder.apply_env_successes({int(t["task_id"]): t["metrics"]["successes"] for t in per_task})
     path = recorder.write(cfg.output_dir, config=step.config)
     counts = dict(step.passthrough_counts) or "none"
     logging.info("physvla: diagnostics written to %s (pass-throughs: %s)", path, counts)

@@ -7,6 +7,7 @@ is how state crosses process boundaries (async vector envs) and LeRobot observat
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,9 +35,22 @@ _FIELDS = (
 )
 
 
+@functools.lru_cache(maxsize=None)
 def packed_size(n_joints: int) -> int:
     """Length of the flat vector that holds one env's state for an arm of n_joints."""
     return sum(int(np.prod(shape(n_joints), dtype=int)) for _, shape in _FIELDS)
+
+
+@functools.lru_cache(maxsize=None)
+def _layout(n_joints: int) -> tuple[tuple[str, int, int, tuple[int, ...]], ...]:
+    """(name, start, length, shape) of every field, in packing order."""
+    out, i = [], 0
+    for name, shape in _FIELDS:
+        s = shape(n_joints)
+        k = int(np.prod(s, dtype=int))
+        out.append((name, i, k, s))
+        i += k
+    return tuple(out)
 
 
 def field_offsets(n_joints: int) -> dict[str, int]:
@@ -48,6 +62,7 @@ def field_offsets(n_joints: int) -> dict[str, int]:
     return out
 
 
+@functools.lru_cache(maxsize=None)
 def n_joints_from_size(size: int) -> int:
     """Inverse of packed_size; raises if no joint count gives this length."""
     for n in range(1, 64):
@@ -94,13 +109,14 @@ class PhysState:
         return cls.unpack(np.zeros((batch_size, packed_size(n_joints))))
 
     def __setattr__(self, name, value):
-        if name != "_flat" and getattr(self, "_flat", None) is not None:
-            object.__setattr__(self, "_flat", None)
-        object.__setattr__(self, name, value)
+        d = self.__dict__
+        if d.get("_flat") is not None and name != "_flat":
+            d["_flat"] = None
+        d[name] = value
 
     def pack(self) -> np.ndarray:
         """(B, packed_size(n)) float64 array with the fixed field layout (no copy when it has one)."""
-        flat = getattr(self, "_flat", None)
+        flat = self.__dict__.get("_flat")
         if flat is not None:
             return flat
         b = self.batch_size
@@ -115,14 +131,8 @@ class PhysState:
             flat = flat[None]
         if flat.ndim != 2:
             raise ValueError(f"physvla: packed state must be (B, L), got shape {flat.shape}")
-        n = n_joints_from_size(flat.shape[1])
         b = flat.shape[0]
-        out, i = {}, 0
-        for name, shape in _FIELDS:
-            s = shape(n)
-            k = int(np.prod(s, dtype=int))
-            out[name] = flat[:, i : i + k].reshape((b, *s))
-            i += k
+        out = {name: flat[:, i : i + k].reshape((b, *s)) for name, i, k, s in _layout(n_joints_from_size(flat.shape[1]))}
         st = cls(**out)
         object.__setattr__(st, "_flat", flat)
         return st
