@@ -30,7 +30,8 @@ from lerobot_physvla.robosuite_source import RobosuiteStateSource
 from lerobot_physvla.state import PhysState
 
 CONFIGS = {
-    "no-op (baseline)": PhysVLAConfig(mode="baseline"),
+    "no-op (identity function)": None,
+    "baseline mode (phases only)": PhysVLAConfig(mode="baseline"),
     "temporal": PhysVLAConfig(mode="temporal"),
     "phys": PhysVLAConfig(mode="phys"),
     "phys_el joint_diag": PhysVLAConfig(mode="phys_el"),
@@ -69,20 +70,22 @@ def bench(cfg: PhysVLAConfig, rows, actions, batch: int, repeats: int):
     idx = (np.arange(n)[:, None] + 17 * np.arange(batch)[None]) % n  # (steps, B)
     states = [PhysState.unpack(rows[i]) for i in idx]
     acts = [np.ascontiguousarray(actions[i]) for i in idx]
-    c = Corrector(cfg, batch)
+    c = Corrector(cfg, batch) if cfg is not None else None
+    call = c if c is not None else (lambda a, s: a.copy())  # the no-op corrector
     for s, a in zip(states[:20], acts[:20]):  # warm-up (numba compiles on first use)
-        c(a, s)
+        call(a, s)
     total, ta, tb = [], [], []
     for _ in range(repeats):
-        c.reset()
+        if c is not None:
+            c.reset()
         for s, a in zip(states, acts):
             t0 = time.perf_counter()
-            c(a, s)
+            call(a, s)
             total.append(time.perf_counter() - t0)
-            ta.append(c.last.t_branch_a_s)
-            tb.append(c.last.t_branch_b_s)
+            ta.append(c.last.t_branch_a_s if c else 0.0)
+            tb.append(c.last.t_branch_b_s if c else 0.0)
     us = lambda x: np.asarray(x) * 1e6 / batch  # noqa: E731  per env-step, microseconds
-    return {"total": us(total), "a": us(ta), "b": us(tb), "passthrough": dict(c.passthrough_counts)}
+    return {"total": us(total), "a": us(ta), "b": us(tb), "passthrough": dict(c.passthrough_counts) if c else {}}
 
 
 def main() -> None:

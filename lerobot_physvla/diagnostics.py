@@ -31,6 +31,7 @@ class _Episode:
         self.phase, self.r_el, self.r_energy, self.status = [], [], [], []
         self.eef, self.d_obj, self.d_tgt, self.t_us = [], [], [], []
         self.states = []  # packed state rows, kept only when the recorder saves states
+        self.el_weight = []  # sum of Branch B weights (0 where it did not run)
         self.success = False
         self.dt = 0.05
 
@@ -87,11 +88,13 @@ class EpisodeRecorder:
 
     Attributes:
         horizon: episode length used for efficiency (the env's max steps), or None.
+        gripper_index: the gripper's action entry (for the veto firing rate), or None.
         episodes: finished and running episodes, in start order.
     """
 
-    def __init__(self, horizon: int | None = None, save_states: bool = False):
+    def __init__(self, horizon: int | None = None, save_states: bool = False, gripper_index: int | None = 6):
         self.horizon = horizon
+        self.gripper_index = gripper_index
         self.save_states = save_states
         self.episodes: list[_Episode] = []
         self._open: dict[int, _Episode] = {}
@@ -136,6 +139,7 @@ class EpisodeRecorder:
             ep.d_obj.append(float(diag.d_obj_xy[i]))
             ep.d_tgt.append(float(diag.d_tgt_xy[i]))
             ep.t_us.append(t_total_s * 1e6 / b)
+            ep.el_weight.append(float(diag.weights[i].sum()))
             if self.save_states:
                 ep.states.append(state.pack()[i].copy())
 
@@ -166,12 +170,19 @@ class EpisodeRecorder:
         lo, hi = metrics.wilson_interval(k, n)
         mean = lambda key: float(np.nanmean([r[key] for r in recs])) if n else None  # noqa: E731
         phases = Counter()
-        corrected_steps = total_steps = 0
+        corrected_steps = total_steps = veto_steps = el_steps = approach_steps = 0
+        g = self.gripper_index
         for ep in self.episodes:
             phases.update(PHASE_NAMES[p] if p >= 0 else "pass-through" for p in ep.phase)
-            d = np.abs(np.asarray(ep.corrected) - np.asarray(ep.raw)).max(axis=1) if ep.raw else np.zeros(0)
-            corrected_steps += int((d > 0).sum())
-            total_steps += len(ep.raw)
+            if not ep.raw:
+                continue
+            raw, cor, ph = np.asarray(ep.raw), np.asarray(ep.corrected), np.asarray(ep.phase)
+            corrected_steps += int((np.abs(cor - raw).max(axis=1) > 0).sum())
+            total_steps += len(raw)
+            approach_steps += int((ph == 0).sum())
+            if g is not None:
+                veto_steps += int(((ph == 0) & (cor[:, g] != raw[:, g])).sum())
+            el_steps += int((np.asarray(ep.el_weight) > 0).sum())
         pt = Counter()
         for r in recs:
             pt.update(r["passthrough"])
@@ -183,6 +194,10 @@ class EpisodeRecorder:
             "steps": total_steps,
             "phase_fraction": {p: c / max(total_steps, 1) for p, c in phases.items()},
             "corrected_fraction": corrected_steps / max(total_steps, 1),
+            # firing rates: the approach veto changed the gripper (share of approach steps);
+            # Branch B blended something in (share of all steps)
+            "veto_fire_rate": veto_steps / max(approach_steps, 1),
+            "el_fire_rate": el_steps / max(total_steps, 1),
             "passthrough": dict(pt),
             "overhead_us_per_env_step": {"p50": _nanpct(t, 50), "p99": _nanpct(t, 99)},
         }

@@ -131,7 +131,9 @@ def activate_eval(argv: list[str]) -> None:
 
     def attach(step):  # record every step of the evaluation (also a checkpoint's own corrector)
         if getattr(step, "_physvla_recorder", None) is None:
-            step._physvla_recorder = EpisodeRecorder(save_states=os.environ.get("PHYSVLA_SAVE_STATES") == "1")
+            step._physvla_recorder = EpisodeRecorder(
+                save_states=os.environ.get("PHYSVLA_SAVE_STATES") == "1", gripper_index=step.cfg.action_layout.gripper
+            )
             step.listeners.append(step._physvla_recorder)
         return step
 

@@ -10,7 +10,7 @@ from conftest import make_state
 
 
 def feed(rec, corr, steps, success, executed):
-    st = make_state(batch_size=2)
+    st = make_state(batch_size=2, obj=(0.5, 0.0, 0.9))  # approach
     st.episode_step[:] = steps
     extra = np.zeros((2, 9))
     extra[:, 1] = success
@@ -34,5 +34,7 @@ def test_recorder_splits_episodes_and_stops_at_success(tmp_path):
     assert recs[0]["efficiency"] == 0.8 and recs[1]["efficiency"] == 0.0
     s = rec.summary()
     assert s["episodes"] == 4 and s["success_rate"] == 0.25
+    # raw gripper 0.1 in approach: the veto (through the 5 % cap) changes it at every approach step
+    assert s["veto_fire_rate"] == 1.0 and s["el_fire_rate"] == 1.0  # phys_el soft: Branch B always on
     rec.write(tmp_path, config={"mode": "phys_el"})
     assert (tmp_path / "physvla_episodes.jsonl").read_text().count("\n") == 4
