@@ -49,17 +49,25 @@ def _sym3_inverse(a, inv):
 
 
 @njit(cache=True)
+def _j_times(J, X, a):
+    """a (3, 3) = J (3, n) @ X (n, 3)."""
+    for r in range(3):
+        for c in range(3):
+            acc = 0.0
+            for k in range(J.shape[1]):
+                acc += J[r, k] * X[k, c]
+            a[r, c] = acc
+
+
+@njit(cache=True)
 def qddot_row(J, qdot, v, dt, damping, out):
     """qddot = (J^T (J J^T + lambda^2 I)^-1 v - qdot) / dt for one env; v in m/s, out (n,) rad/s^2."""
     n = qdot.shape[0]
     a = np.empty((3, 3))
     inv = np.empty((3, 3))
+    _j_times(J, J.T, a)
     for r in range(3):
-        for c in range(3):
-            acc = 0.0
-            for k in range(n):
-                acc += J[r, k] * J[c, k]
-            a[r, c] = acc + (damping * damping if r == c else 0.0)
+        a[r, r] += damping * damping
     _sym3_inverse(a, inv)
     y0 = inv[0, 0] * v[0] + inv[0, 1] * v[1] + inv[0, 2] * v[2]
     y1 = inv[1, 0] * v[0] + inv[1, 1] * v[1] + inv[1, 2] * v[2]
@@ -127,12 +135,7 @@ def task_space_diag_row(M, J, out):
             X[i, c] = t / L[i, i]
     a = np.empty((3, 3))
     inv = np.empty((3, 3))
-    for r in range(3):
-        for c in range(3):
-            acc = 0.0
-            for k in range(n):
-                acc += J[r, k] * X[k, c]
-            a[r, c] = acc
+    _j_times(J, X, a)
     det = _sym3_inverse(a, inv)
     if not det > 0.0:
         return False
