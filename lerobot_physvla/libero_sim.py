@@ -65,7 +65,13 @@ def make_libero_env(task: LiberoTask, cameras: bool = False, camera_size: int = 
 
 
 def reset_to_init_state(env, task: LiberoTask, index: int, settle_steps: int = SETTLE_STEPS):
-    """Reset to the task's init state `index` and settle with no-op steps; returns the raw obs."""
+    """Reset to the task's init state `index` and settle with no-op steps; returns the raw obs.
+
+    Seeds the env with `index` first (as lerobot's LiberoEnv does with its seed): robosuite's
+    reset draws the controller's initial-joint reference from numpy's global RNG, and that
+    reference survives `set_init_state`, so without it an episode depends on the ones before it.
+    """
+    env.seed(index)
     env.reset()
     obs = env.set_init_state(task.init_states[index % len(task.init_states)])
     for _ in range(settle_steps):
