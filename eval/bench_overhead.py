@@ -5,7 +5,8 @@
 1. Records a real LIBERO-Spatial task-0 episode (state-only, no cameras): the scripted expert's
    raw actions and the packed physical state at every step, timing `env.step` and the state read.
 2. Replays those inputs through the corrector for B = 1 and B = 8 envs (env i starts i*17 steps
-   into the episode, so the batch mixes phases), for a no-op (baseline) corrector and each mode.
+   into the episode, so the batch mixes phases), for a no-op corrector and each mode, the
+   configs interleaved repeat by repeat so that machine noise falls on all of them alike.
 3. Prints per env-step p50 / p99 of the whole call and of Branch A / Branch B, and the ratios
    to the no-op corrector and to the env step, all measured in this one run. Writes a markdown
    table and a JSON next to it.
@@ -65,27 +66,33 @@ def record(steps: int):
     return np.array(rows), np.array(actions), np.array(t_step), np.array(t_read)
 
 
-def bench(cfg: PhysVLAConfig, rows, actions, batch: int, repeats: int):
+def bench(configs: dict, rows, actions, batch: int, repeats: int) -> dict:
+    """Time every config on the same inputs, interleaved (repeat r runs all configs in turn),
+    so machine noise falls on all of them alike."""
     n = len(rows)
     idx = (np.arange(n)[:, None] + 17 * np.arange(batch)[None]) % n  # (steps, B)
     states = [PhysState.unpack(rows[i]) for i in idx]
     acts = [np.ascontiguousarray(actions[i]) for i in idx]
-    c = Corrector(cfg, batch) if cfg is not None else None
-    call = c if c is not None else (lambda a, s: a.copy())  # the no-op corrector
-    for s, a in zip(states[:20], acts[:20]):  # warm-up (numba compiles on first use)
-        call(a, s)
-    total, ta, tb = [], [], []
-    for _ in range(repeats):
-        if c is not None:
-            c.reset()
-        for s, a in zip(states, acts):
-            t0 = time.perf_counter()
-            call(a, s)
-            total.append(time.perf_counter() - t0)
-            ta.append(c.last.t_branch_a_s if c else 0.0)
-            tb.append(c.last.t_branch_b_s if c else 0.0)
-    us = lambda x: np.asarray(x) * 1e6 / batch  # noqa: E731  per env-step, microseconds
-    return {"total": us(total), "a": us(ta), "b": us(tb), "passthrough": dict(c.passthrough_counts) if c else {}}
+    correctors = {name: (Corrector(cfg, batch) if cfg is not None else None) for name, cfg in configs.items()}
+    res = {name: {"total": [], "a": [], "b": []} for name in configs}
+    for _ in range(repeats + 1):  # the first round warms up (numba compiles on first use)
+        for name, c in correctors.items():
+            call = c if c is not None else (lambda a, s: a.copy())  # the no-op corrector
+            if c is not None:
+                c.reset()
+            r = res[name]
+            for s, a in zip(states, acts):
+                t0 = time.perf_counter()
+                call(a, s)
+                r["total"].append(time.perf_counter() - t0)
+                r["a"].append(c.last.t_branch_a_s if c else 0.0)
+                r["b"].append(c.last.t_branch_b_s if c else 0.0)
+    out = {}
+    for name, r in res.items():
+        c = correctors[name]
+        out[name] = {k: np.asarray(v[n:]) * 1e6 / batch for k, v in r.items()}  # drop warm-up; us / env-step
+        out[name]["passthrough"] = dict(c.passthrough_counts) if c else {}
+    return out
 
 
 def main() -> None:
@@ -112,8 +119,9 @@ def main() -> None:
     results = {"env_step_us_p50": step_us, "state_read_us_p50": read_us, "rows": []}
     for batch in (1, 8):
         noop = None
-        for name, cfg in CONFIGS.items():
-            r = bench(cfg, rows, actions, batch, args.repeats)
+        timings = bench(CONFIGS, rows, actions, batch, args.repeats)
+        for name in CONFIGS:
+            r = timings[name]
             p50, p99 = np.percentile(r["total"], [50, 99])
             noop = p50 if noop is None else noop
             row = {
