@@ -88,6 +88,12 @@ def residual_row(M, qdd, bias, tau, out):
 
 
 @njit(cache=True)
+def rho(r, eps, r0):
+    """rho(r) = clip((r - eps) / (r0 - eps), 0, 1): the gate of eq. 5, r in N m."""
+    return min(max((r - eps) / (r0 - eps), 0.0), 1.0)
+
+
+@njit(cache=True)
 def softmax_inverse_row(x, out):
     """softmax(1 / x) (eq. 5's weighting of inertias), numerically stable."""
     m = -np.inf
@@ -173,9 +179,7 @@ def el_gate_row(a_raw, a_phys, row, o, n, pos, p, flags, a_out, w, diag):
     rn = math.sqrt(rn)
     diag[0] = rn
     diag[1] = abs(power)
-    rho = 1.0
-    if flags[0] == GATED:
-        rho = min(max((rn - p[2]) / (p[3] - p[2]), 0.0), 1.0)  # eq. 5
+    g = rho(rn, p[2], p[3]) if flags[0] == GATED else 1.0  # eq. 5
     for k in range(a_raw.shape[0]):
         w[k] = 0.0
         a_out[k] = a_phys[k]
@@ -187,7 +191,7 @@ def el_gate_row(a_raw, a_phys, row, o, n, pos, p, flags, a_out, w, diag):
                 return False
         softmax_inverse_row(d, w)
         for k in range(n):
-            w[k] *= rho
+            w[k] *= g
             a_out[k] = w[k] * a_phys[k] + (1.0 - w[k]) * a_raw[k]  # eq. 6
     else:
         lam = np.empty(3)
@@ -196,7 +200,7 @@ def el_gate_row(a_raw, a_phys, row, o, n, pos, p, flags, a_out, w, diag):
         ws = np.empty(3)
         softmax_inverse_row(lam, ws)
         for k in range(3):
-            w[pos[k]] = rho * ws[k]
+            w[pos[k]] = g * ws[k]
             a_out[pos[k]] = w[pos[k]] * a_phys[pos[k]] + (1.0 - w[pos[k]]) * a_raw[pos[k]]
     return True
 
@@ -221,8 +225,8 @@ def el_residual(M, qddot, bias, tau):
 
 
 def gate(r_norm: np.ndarray, eps: float, r0: float) -> np.ndarray:
-    """rho(r) = clip((r - eps) / (r0 - eps), 0, 1)  (eq. 5)."""
-    return np.clip((r_norm - eps) / (r0 - eps), 0.0, 1.0)
+    """rho(r) for (B,) residual norms (eq. 5)."""
+    return np.array([rho(float(r), eps, r0) for r in np.atleast_1d(r_norm)])
 
 
 @njit(cache=True)
