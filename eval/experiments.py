@@ -1,8 +1,12 @@
-"""The paper's experiments on LIBERO-Spatial, re-measured with scripted backbones.
+"""The paper's experiments, re-measured with the project's own backbones (state-only, no cameras).
 
-    .venv/bin/python eval/experiments.py table2     [--per-task 5] [--workers 2]
-    .venv/bin/python eval/experiments.py ablation   [--per-task 5]
-    .venv/bin/python eval/experiments.py place_bias [--pairs 20]
+    .venv/bin/python eval/experiments.py table2      [--per-task 5] [--workers 2] [--backend ray]
+    .venv/bin/python eval/experiments.py ablation    [--per-task 5]
+    .venv/bin/python eval/experiments.py place_bias  [--pairs 20]
+    .venv/bin/python eval/experiments.py lift_sweep  [--trials 20]
+    .venv/bin/python eval/experiments.py lift_plate  [--pairs 20]
+    .venv/bin/python eval/experiments.py fetch_sweep [--trials 20]
+    .venv/bin/python eval/experiments.py learned     [--per-task 5] [--checkpoints outputs/train]
 
 Each writes `eval/results/<experiment>/`: README.md (the table, with this command, how long it
 took and on what), records.json (one record per episode) and plots. Sweeps are resumable:
@@ -13,7 +17,16 @@ re-running the same command skips the units already written under `units/`.
   against baseline flagged (paper Table 2 / A2 analogue).
 - ablation: phys_el with both EL weightings x both gripper rules (+ phys for reference).
 - place_bias: matched seeds (same init state, same drawn bias) with and without correction,
-  for an expert with a persistent place bias (paper's real-world sim verification).
+  for an expert with a persistent place bias, on LIBERO-Spatial.
+- lift_sweep: robosuite Lift, Gaussian x, y action noise of sigma (action units) during the
+  grasp phase, sigma in {0 .. 0.40}, seeds 7 + trial; success, reward, jerk and the
+  jerk-degradation ratio (paper Table A1).
+- lift_plate: Lift + place-on-plate, persistent place-phase x, y action bias of size
+  ~ U(0, 1.7) action units, matched seeds 7 + i (paper's real-world sim verification).
+- fetch_sweep: the lift_sweep protocol on gymnasium-robotics FetchPickAndPlace (4-D action
+  layout, another arm, task_space EL weighting): the corrector is not tied to one simulator.
+- learned: the LeRobot ACT / Diffusion backbones trained by policies/train_backbones.py x modes
+  x the 10 tasks (Table 2 layout).
 """
 
 from __future__ import annotations
@@ -30,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import BACKBONES, Unit, run_units, seed_blocks  # noqa: E402
+from harness import BACKBONES, BACKENDS, Unit, run_units, seed_blocks  # noqa: E402
 
 from lerobot_physvla import metrics  # noqa: E402
 from lerobot_physvla.config import PhysVLAConfig  # noqa: E402
@@ -61,16 +74,17 @@ def aggregate(records, keys=("backbone", "config")) -> dict:
     return out
 
 
-def header(title: str, seconds: float, n_units: int) -> list[str]:
+def header(title: str, seconds: float, n_units: int, sim: str = "LIBERO", about: str | None = None) -> list[str]:
+    about = about or ("Backbones are the scripted expert with injected failure modes (eval/backbones.py: BACKBONES); "
+                      "seeds = LIBERO init-state index and expert noise seed, matched across modes. Success is "
+                      "LIBERO's own check; rates with 95 % Wilson intervals.")
     return [
         f"# {title}\n",
         f"Command: `.venv/bin/python {' '.join(sys.argv)}`  ",
-        f"Ran on: {platform.machine()}, {os.cpu_count()} cores, no GPU; LIBERO state-only (no cameras); "
+        f"Ran on: {platform.machine()}, {os.cpu_count()} cores, no GPU; {sim} state-only (no cameras); "
         f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; this invocation took {seconds / 60:.1f} min "
         f"for {n_units} units (units already on disk are not re-run).  ",
-        "Backbones are the scripted expert with injected failure modes (eval/harness.py: BACKBONES); "
-        "seeds = LIBERO init-state index and expert noise seed, matched across modes. Success is LIBERO's "
-        "own check; rates with 95 % Wilson intervals.\n",
+        about + "\n",
     ]
 
 
@@ -146,7 +160,7 @@ def table2(args) -> None:
         Unit(b, m, PhysVLAConfig(mode=m).to_dict(), t, s, n, BACKBONES[b])
         for b in BACKBONES for m in MODES for t in range(10) for s, n in seed_blocks(args.per_task, args.block)
     ]
-    records, secs = run_units(units, out, args.workers)
+    records, secs = run_units(units, out, args.workers, args.backend)
     agg = aggregate(records)
     rows = [(b, m) for b in BACKBONES for m in MODES]
     pt, flags = per_task_table(records, BACKBONES, MODES)
@@ -178,7 +192,7 @@ def ablation(args) -> None:
         for b in backbones for name, cfg in ABLATION.items() for t in range(10)
         for s, n in seed_blocks(args.per_task, args.block)
     ]
-    records, secs = run_units(units, out, args.workers)
+    records, secs = run_units(units, out, args.workers, args.backend)
     agg = aggregate(records)
     rows = [(b, c) for b in backbones for c in ABLATION]
     plot_success(agg, rows, out / "success_jerk.png", "EL weighting x gripper rule")
@@ -197,7 +211,7 @@ def place_bias(args) -> None:
     # seed pairs spread over the 10 tasks: pair k runs task k % 10 with seed k
     units = [Unit("expert_place_bias", name, cfg.to_dict(), k % 10, k, 1, expert)
              for name, cfg in configs.items() for k in range(args.pairs)]
-    records, secs = run_units(units, out, args.workers)
+    records, secs = run_units(units, out, args.workers, args.backend)
     by = {(r["config"], r["task_id"], r["seed"]): r for r in records}
     agg = aggregate(records)
     rows = [("expert_place_bias", c) for c in configs]
@@ -220,18 +234,184 @@ def place_bias(args) -> None:
     write(out, lines, records)
 
 
+SIGMAS = (0.0, 0.05, 0.10, 0.15, 0.20, 0.30, 0.40)
+
+
+def noise_sweep(args, scene: str, out: Path, configs: dict, title: str, sim: str) -> None:
+    """Grasp-phase x, y action noise sweep (paper Table A1 protocol) on one scene."""
+    units = [Unit(f"sigma={sg:.2f}", name, cfg.to_dict(), 0, 7, args.trials,
+                  {"action_noise": sg, "noise_stage": "grasp"}, scene=scene)
+             for sg in SIGMAS for name, cfg in configs.items()]
+    records, secs = run_units(units, out, args.workers, args.backend)
+    agg = aggregate(records)
+    base = "baseline"
+    lines = header(title, secs, len(units), sim, about=(
+        f"Backbone: the scripted expert with Gaussian x, y noise of sigma (action units) added to its action while "
+        f"within 6 cm of the grasp point before lifting (ExpertConfig noise_stage='grasp'); {args.trials} trials per "
+        f"cell, seed = 7 + trial (same scene draw and noise stream in every mode). Success is the env's own check "
+        f"at the last step; reward is the env's reward summed over the episode; jerk is the mean end-effector "
+        f"jerk (m/s^3, metrics.mean_jerk); success rates with 95 % Wilson intervals."))
+    head = "| sigma | " + " | ".join(f"success {c}" for c in configs) + " | " + \
+        " | ".join(f"reward {c}" for c in configs) + " | " + " | ".join(f"jerk {c}" for c in configs) + " |"
+    lines += ["## Per noise level\n", head, "|---|" + "---|" * (3 * len(configs))]
+    for sg in SIGMAS:
+        b = f"sigma={sg:.2f}"
+        row = [f"{agg[(b, c)]['successes']}/{agg[(b, c)]['n']}" for c in configs]
+        row += [f"{_mean(_sel(records, b, c), 'reward'):.2f}" for c in configs]
+        row += [f"{agg[(b, c)]['mean_jerk']:.2f}" for c in configs]
+        lines.append(f"| {sg:.2f} | " + " | ".join(row) + " |")
+    lines += ["", "## Jerk degradation from sigma = 0 to sigma = 0.40\n",
+              "| mode | jerk at 0 | jerk at 0.40 | degradation | baseline degradation / this mode's |", "|---|---|---|---|---|"]
+    deg = {}
+    for c in configs:
+        j0, j1 = agg[("sigma=0.00", c)]["mean_jerk"], agg[("sigma=0.40", c)]["mean_jerk"]
+        deg[c] = (j1 - j0) / j0
+    for c in configs:
+        ratio = deg[base] / deg[c] if deg[c] > 0 else float("inf")
+        lines.append(f"| {c} | {agg[('sigma=0.00', c)]['mean_jerk']:.2f} | {agg[('sigma=0.40', c)]['mean_jerk']:.2f} | "
+                     f"{deg[c]:+.0%} | {ratio:.2f} |")
+    pooled = aggregate([dict(r, backbone="all sigmas") for r in records])
+    lines += ["", "## Pooled over the noise levels (n = 7 x trials per mode)\n",
+              *summary_table(pooled, [("all sigmas", c) for c in configs]), "",
+              "Paper (Table A1, n = 10 per cell): jerk +175 % (baseline) vs +17 % (PhysVLA), ratio ~10x; success "
+              "100 % everywhere.", "", "![sweep](sweep.png)"]
+    _plot_sweep(agg, records, configs, out / "sweep.png", title)
+    write(out, lines, records)
+
+
+def _sel(records, backbone, config):
+    return [r for r in records if r["backbone"] == backbone and r["config"] == config]
+
+
+def _plot_sweep(agg, records, configs, path: Path, title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6))
+    for c in configs:
+        keys = [(f"sigma={sg:.2f}", c) for sg in SIGMAS]
+        s = np.array([agg[k]["success"] for k in keys])
+        lo = np.array([agg[k]["ci"][0] for k in keys])
+        hi = np.array([agg[k]["ci"][1] for k in keys])
+        axes[0].errorbar(SIGMAS, s, yerr=[s - lo, hi - s], marker="o", capsize=3, label=c)
+        axes[1].plot(SIGMAS, [_mean(_sel(records, *k), "reward") for k in keys], marker="o", label=c)
+        axes[2].plot(SIGMAS, [agg[k]["mean_jerk"] for k in keys], marker="o", label=c)
+    for ax, lab in zip(axes, ("success (95 % CI)", "episode reward", "mean jerk (m/s^3)")):
+        ax.set_xlabel("grasp-phase noise sigma (action units)")
+        ax.set_ylabel(lab)
+        ax.legend(fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def lift_sweep(args) -> None:
+    configs = {"baseline": PhysVLAConfig(mode="baseline"), "phys": PhysVLAConfig(mode="phys"),
+               "phys_el": PhysVLAConfig(mode="phys_el")}
+    noise_sweep(args, "lift", RESULTS / "lift_sweep", configs, "Robosuite Lift noise sweep (paper Table A1)",
+                "robosuite 1.4 Lift (Panda, OSC_POSE, 20 Hz, 250 steps)")
+
+
+def fetch_sweep(args) -> None:
+    # joint_diag needs one joint weight per action entry (7 = 7 on the Panda); Fetch has 7 arm joints
+    # and a 4-D action, so the EL blend is weighted in task space.
+    configs = {"baseline": PhysVLAConfig(mode="baseline", layout="fetch_4d"),
+               "phys": PhysVLAConfig(mode="phys", layout="fetch_4d"),
+               "phys_el": PhysVLAConfig(mode="phys_el", layout="fetch_4d", weighting="task_space")}
+    noise_sweep(args, "fetch_pick_place", RESULTS / "fetch_sweep", configs,
+                "Cross-simulator: FetchPickAndPlace noise sweep (4-D actions, Fetch arm)",
+                "gymnasium-robotics FetchPickAndPlace-v4 (mocap-driven Fetch, 25 Hz)")
+
+
+def lift_plate(args) -> None:
+    out = RESULTS / "lift_plate"
+    expert = {"place_bias_units": args.bias_units}
+    configs = {"baseline": PhysVLAConfig(mode="baseline"), "phys": PhysVLAConfig(mode="phys"),
+               "phys_el": PhysVLAConfig(mode="phys_el")}
+    units = [Unit("expert_place_bias", name, cfg.to_dict(), 0, 7, args.pairs, expert, scene="lift_plate")
+             for name, cfg in configs.items()]
+    records, secs = run_units(units, out, args.workers, args.backend)
+    by = {(r["config"], r["seed"]): r for r in records}
+    agg = aggregate(records)
+    rows = [("expert_place_bias", c) for c in configs]
+    lines = header(f"Lift + place-on-plate, matched seeds, persistent place bias ~ U(0, {args.bias_units}) action units",
+                   secs, len(units), "robosuite 1.4 Lift + plate check (lerobot_physvla/lift_sim.py)", about=(
+                       "Backbone: the scripted expert with a persistent x, y action bias during place (direction ~ "
+                       "U(0, 2 pi), size ~ U(0, 1.7) action units, drawn per seed, identical across modes); seeds "
+                       "7 .. 7 + pairs - 1. Success: cube at rest on the 4.5 cm plate disk, gripper open, 5 steps."))
+    lines += summary_table(agg, rows) + ["", "## Paired outcomes against baseline (same seed: same cube, same bias)\n",
+                                         "| mode | both succeed | only corrected | only baseline | both fail | mean jerk change (m/s^3) |",
+                                         "|---|---|---|---|---|---|"]
+    for c in ("phys", "phys_el"):
+        cnt = defaultdict(int)
+        dj = []
+        for k in range(7, 7 + args.pairs):
+            a, b = by[(c, k)], by[("baseline", k)]
+            cnt[(a["success"], b["success"])] += 1
+            dj.append(a["mean_jerk"] - b["mean_jerk"])
+        lines.append(f"| {c} | {cnt[(True, True)]} | {cnt[(True, False)]} | {cnt[(False, True)]} | "
+                     f"{cnt[(False, False)]} | {np.mean(dj):+.3f} |")
+    lines += ["", "Paper (n = 20 pairs): baseline 35 %, PhysVLA 95 %.", "", "![success and jerk](success_jerk.png)"]
+    plot_success(agg, rows, out / "success_jerk.png", "Lift + place-on-plate, place bias")
+    write(out, lines, records)
+
+
+def learned(args) -> None:
+    out = RESULTS / "learned"
+    ckpt_root = Path(args.checkpoints)
+    names = [n for n in args.learned.split(",")]
+    missing = [n for n in names if not (ckpt_root / n / "checkpoints" / "last" / "pretrained_model").exists()]
+    if missing:
+        raise SystemExit(f"experiments: no checkpoint for {missing} under {ckpt_root}; "
+                         "run policies/record_dataset.py then policies/train_backbones.py")
+    units = [
+        Unit(n, m, PhysVLAConfig(mode=m).to_dict(), t, s, k,
+             policy=str((ckpt_root / n / "checkpoints" / "last" / "pretrained_model").resolve()))
+        for n in names for m in MODES for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
+    ]
+    records, secs = run_units(units, out, args.workers, args.backend)
+    agg = aggregate(records)
+    rows = [(n, m) for n in names for m in MODES]
+    pt, flags = per_task_table(records, names, MODES)
+    plot_success(agg, rows, out / "success_jerk.png", "LIBERO-Spatial, learned backbones x modes")
+    lines = header("Learned backbones (LeRobot ACT / Diffusion, state inputs) x modes on LIBERO-Spatial", secs,
+                   len(units), about=(
+                       "Backbones: LeRobot policies trained on the CPU by policies/train_backbones.py (recipes and "
+                       "seeds in recipe.json beside each checkpoint) from scripted-expert demonstrations on init "
+                       "states 10-39 (policies/record_dataset.py); evaluated on init states 0 .. per-task - 1. Success "
+                       "is LIBERO's own check; rates with 95 % Wilson intervals."))
+    lines += ["## Aggregate over the 10 tasks\n", *summary_table(agg, rows), "",
+              "## Per task (successes / episodes; (+)/(-) = more / fewer than baseline, same backbone and seeds)\n",
+              *pt, "", "## Per-task regressions against baseline\n",
+              *([f"- {f}" for f in flags] or ["- none"]), "", "![success and jerk](success_jerk.png)"]
+    write(out, lines, records)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("experiment", choices=("table2", "ablation", "place_bias"))
+    ap.add_argument("experiment", choices=tuple(EXPERIMENTS))
     ap.add_argument("--per-task", type=int, default=5, help="episodes per task and cell (seeds 0..N-1)")
     ap.add_argument("--block", type=int, default=5, help="episodes per unit of work")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--backbones", default="expert_jitter,expert_faulty", help="ablation: which backbones")
     ap.add_argument("--pairs", type=int, default=20, help="place_bias: matched seed pairs")
     ap.add_argument("--bias-m", type=float, default=0.05, help="place_bias: maximum bias, m")
+    ap.add_argument("--bias-units", type=float, default=1.7, help="lift_plate: maximum bias, action units")
+    ap.add_argument("--trials", type=int, default=20, help="lift_sweep / fetch_sweep: trials per (sigma, mode)")
+    ap.add_argument("--checkpoints", default="outputs/train", help="learned: where train_backbones.py wrote")
+    ap.add_argument("--learned", default="act_single,act_chunk,diffusion_single,diffusion_chunk",
+                    help="learned: which trained recipes")
+    ap.add_argument("--backend", choices=BACKENDS, default="process",
+                    help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
     args = ap.parse_args()
-    {"table2": table2, "ablation": ablation, "place_bias": place_bias}[args.experiment](args)
+    EXPERIMENTS[args.experiment](args)
 
+
+EXPERIMENTS = {"table2": table2, "ablation": ablation, "place_bias": place_bias, "lift_sweep": lift_sweep,
+               "lift_plate": lift_plate, "fetch_sweep": fetch_sweep, "learned": learned}
 
 if __name__ == "__main__":
     main()

@@ -1,16 +1,22 @@
-"""Evaluation harness: units of work over (backbone, mode, task, seed block), run in parallel.
+"""Evaluation harness: units of work over (backbone, mode, scene, seed block), run in parallel.
 
-A unit runs its episodes in one process on a state-only LIBERO scene (the core library, no
-LeRobot in the loop: the same corrector, state source and metrics that `lerobot-eval
+A unit runs its episodes in one process on a state-only scene (lerobot_physvla.scenes: LIBERO,
+robosuite Lift, Fetch) with the core library alone (no LeRobot in the loop for scripted
+backbones: the same corrector, state sources and metrics that `lerobot-eval
 --policy.postprocess=physvla` uses) and writes one JSON of per-episode records. Units already on
-disk are skipped, so a killed sweep resumes where it stopped. Units run on a local process pool
-(`--workers`, default: the CPU count); each worker keeps the LIBERO scenes it built.
+disk are skipped, so a killed sweep resumes where it stopped.
+
+Backends: a local process pool (default; `workers` = the CPU count; each worker keeps the scenes
+and policies it built) or Ray (`backend="ray"`): it joins the cluster at $RAY_ADDRESS, or starts
+a local one; the harness module travels by value and each unit's records come back to the
+driver, which writes them, so workers need lerobot_physvla installed but no shared filesystem.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
@@ -19,21 +25,25 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-HORIZON = 280  # lerobot's LIBERO-Spatial episode length
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from backbones import BACKBONES, ExpertBackbone, LeRobotBackbone  # noqa: E402,F401
 
-# Backbones: the scripted expert with the paper's failure modes injected (experts.ExpertConfig).
-BACKBONES: dict[str, dict] = {
-    "expert_clean": {},
-    # per-step lateral jitter and a grasp-aim error: a memoryless policy's imprecision
-    "expert_jitter": {"action_noise": 0.3, "aim_noise_m": 0.015},
-    # premature closes, a persistent place bias, no deceleration near the target
-    "expert_faulty": {"premature_close": 0.3, "place_bias_m": 0.04, "no_decel": True},
-}
+BACKENDS = ("process", "ray")
 
 
 @dataclass(frozen=True)
 class Unit:
-    """One unit of work: `episodes` episodes of one (backbone, config, task) from `first_seed`."""
+    """One unit of work: `episodes` episodes of one (backbone, config, scene) from `first_seed`.
+
+    Attributes:
+        backbone: backbone name (a key of BACKBONES, or a learned backbone's name).
+        config_name, config: the corrector config (PhysVLAConfig.to_dict()).
+        task_id: LIBERO task id (scene "libero_spatial"); ignored by other scenes.
+        first_seed, episodes: the seed block.
+        expert: ExpertConfig fields of the scripted backbone's failure modes.
+        scene: "libero_spatial" (with task_id), "lift", "lift_plate" or "fetch_pick_place".
+        policy: checkpoint directory of a learned backbone ("" = scripted expert).
+    """
 
     backbone: str
     config_name: str
@@ -42,61 +52,81 @@ class Unit:
     first_seed: int = 0
     episodes: int = 5
     expert: dict = field(default_factory=dict, hash=False, compare=False)
+    scene: str = "libero_spatial"
+    policy: str = ""
+
+    @property
+    def scene_name(self) -> str:
+        return f"{self.scene}/{self.task_id}" if self.scene.startswith("libero_") else self.scene
 
     @property
     def key(self) -> str:
-        return f"{self.backbone}__{self.config_name}__t{self.task_id}__s{self.first_seed}-{self.first_seed + self.episodes - 1}"
+        where = f"t{self.task_id}" if self.scene == "libero_spatial" else self.scene
+        return f"{self.backbone}__{self.config_name}__{where}__s{self.first_seed}-{self.first_seed + self.episodes - 1}"
 
 
-_SCENES: dict[int, tuple] = {}  # per worker process: task id -> (task, env)
+_SCENES: dict[str, object] = {}  # per worker process: scene name -> scene
+_POLICIES: dict[str, LeRobotBackbone] = {}  # per worker process: checkpoint -> backbone
 
 
-def _scene(task_id: int):
-    from lerobot_physvla import libero_sim
+def _scene(name: str):
+    from lerobot_physvla.scenes import make_scene
 
-    if task_id not in _SCENES:
-        task = libero_sim.load_task("libero_spatial", task_id)
-        _SCENES[task_id] = (task, libero_sim.make_libero_env(task))
-    return _SCENES[task_id]
+    if name not in _SCENES:
+        _SCENES[name] = make_scene(name)
+    return _SCENES[name]
 
 
-def run_episode(task, env, corrector, expert, seed: int) -> dict:
-    """One episode; returns its record (success, metrics, firing rates, timings)."""
-    from lerobot_physvla import libero_sim, metrics
-    from lerobot_physvla.robosuite_source import RobosuiteStateSource
+def _backbone(unit: Unit, scene):
+    if not unit.policy:
+        return ExpertBackbone(scene, unit.expert)
+    if unit.policy not in _POLICIES:
+        import torch
 
-    libero_sim.reset_to_init_state(env, task, seed)
-    src = RobosuiteStateSource(env.env)
-    src.reset()
+        torch.set_num_threads(1)  # one env per core; more threads only spin-wait here
+        _POLICIES[unit.policy] = LeRobotBackbone(unit.policy)
+    return _POLICIES[unit.policy]
+
+
+def run_episode(scene, corrector, backbone, seed: int) -> dict:
+    """One episode; returns its record (success, reward, metrics, firing rates, timings).
+
+    Success: at the first successful step for scenes that stop on success (LIBERO, lift_plate),
+    else the scene's check at the last step (Lift, Fetch)."""
+    from lerobot_physvla import metrics
+
+    scene.reset(seed)
     corrector.reset()
-    expert.reset(seed=seed)
+    backbone.reset(seed)
     eef, d_obj, phases, t_a, t_b, t_tot, vetoes, el = [], [], [], [], [], [], 0, 0
     grip = corrector.layout.gripper
-    success, steps = False, 0
-    for steps in range(1, HORIZON + 1):
-        st = src.read()
-        raw = expert.act(st.eef_pos[0], st.obj_pos[0], st.target_pos[0])[None]
+    success, steps, reward, first_success = False, 0, 0.0, None
+    for steps in range(1, scene.horizon + 1):
+        st = scene.read()
+        raw = np.asarray(backbone.act(scene, st), dtype=np.float64)[None]
         out = corrector(raw, st)
         d = corrector.last
-        env.step(out[0])
-        src.step()
+        success, r = scene.step(out[0])
+        reward += r
+        if success and first_success is None:
+            first_success = steps
         eef.append(st.eef_pos[0].copy())
         d_obj.append(float(d.d_obj_xy[0]))
         phases.append(int(d.phase[0]))
         t_a.append(d.t_branch_a_s)
         t_b.append(d.t_branch_b_s)
         t_tot.append(d.t_total_s)
-        vetoes += int(d.phase[0] == 0 and out[0, grip] != raw[0, grip])
+        vetoes += int(grip is not None and d.phase[0] == 0 and out[0, grip] != raw[0, grip])
         el += int(d.weights[0].sum() > 0)
-        if env.check_success():
-            success = True
+        if success and scene.stop_on_success:
             break
     eef_a = np.asarray(eef)
     ph = np.asarray(phases)
     dt = float(st.dt[0])
     return {
-        "seed": seed, "success": success, "steps": steps,
-        "precision": metrics.precision(d_obj), "efficiency": metrics.efficiency(success, steps, HORIZON),
+        "seed": seed, "success": bool(success), "steps": steps, "reward": reward,
+        "first_success_step": first_success, "precision": metrics.precision(d_obj),
+        "efficiency": metrics.efficiency(success, first_success or steps, scene.horizon),
         "stability": metrics.stability(eef_a, dt), "mean_jerk": metrics.mean_jerk(eef_a, dt),
         "sparc": metrics.sparc(eef_a, dt), "ldlj": metrics.ldlj(eef_a, dt),
         "phase_fraction": [float((ph == p).mean()) for p in range(4)],
@@ -106,43 +136,81 @@ def run_episode(task, env, corrector, expert, seed: int) -> dict:
     }
 
 
-def run_unit(unit: Unit, out_dir: str) -> str:
-    """Run one unit and write `<out_dir>/units/<key>.json`; returns the key."""
+def compute_unit(unit: Unit) -> dict:
+    """Run one unit's episodes; returns {"unit", "seconds", "records"} (what run_unit writes)."""
     from lerobot_physvla.config import PhysVLAConfig
     from lerobot_physvla.corrector import Corrector
-    from lerobot_physvla.experts import ExpertConfig, PickPlaceExpert
 
-    task, env = _scene(unit.task_id)
+    scene = _scene(unit.scene_name)
     corrector = Corrector(PhysVLAConfig.from_dict(unit.config))
-    expert = PickPlaceExpert(cfg=ExpertConfig(**unit.expert))
+    backbone = _backbone(unit, scene)
     t0 = time.time()
     records = []
     for k in range(unit.episodes):
-        rec = run_episode(task, env, corrector, expert, unit.first_seed + k)
-        rec.update(backbone=unit.backbone, config=unit.config_name, task_id=unit.task_id)
+        rec = run_episode(scene, corrector, backbone, unit.first_seed + k)
+        rec.update(backbone=unit.backbone, config=unit.config_name, task_id=unit.task_id, scene=unit.scene)
         records.append(rec)
-    path = Path(out_dir) / "units" / f"{unit.key}.json"
+    return {"unit": asdict(unit), "seconds": time.time() - t0, "records": records}
+
+
+def _write(out_dir: str | Path, key: str, payload: dict) -> None:
+    path = Path(out_dir) / "units" / f"{key}.json"
     tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps({"unit": asdict(unit), "seconds": time.time() - t0, "records": records}))
+    tmp.write_text(json.dumps(payload))
     tmp.replace(path)  # atomic: a killed sweep never leaves a half-written unit
+
+
+def run_unit(unit: Unit, out_dir: str) -> str:
+    """Run one unit and write `<out_dir>/units/<key>.json`; returns the key."""
+    _write(out_dir, unit.key, compute_unit(unit))
     return unit.key
 
 
-def run_units(units: list[Unit], out_dir: str | Path, workers: int | None = None) -> tuple[list[dict], float]:
-    """Run the units not yet on disk (process pool, progress bar with ETA); return all records
-    and the wall time this call spent."""
+def _run_process(todo: list[Unit], out: Path, workers: int) -> None:
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = [pool.submit(run_unit, u, str(out)) for u in todo]
+        for f in tqdm(as_completed(futures), total=len(futures), desc="units", unit="unit"):
+            f.result()
+
+
+def _run_ray(todo: list[Unit], out: Path, workers: int) -> None:
+    try:
+        import ray
+        import ray.cloudpickle
+    except ImportError as e:
+        raise SystemExit("harness: --backend ray needs ray: pip install 'lerobot_env_physvla[ray]'") from e
+    if not ray.is_initialized():
+        address = os.environ.get("RAY_ADDRESS")
+        ray.init(address=address, num_cpus=None if address else workers, include_dashboard=False, log_to_driver=False)
+    # the workers import lerobot_physvla; this module (eval/, not installed) travels by value
+    for mod in (sys.modules[__name__], sys.modules["backbones"]):
+        ray.cloudpickle.register_pickle_by_value(mod)
+    remote = ray.remote(num_cpus=1)(compute_unit)
+    pending = {remote.remote(u): u for u in todo}
+    with tqdm(total=len(pending), desc="units (ray)", unit="unit") as bar:
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            unit = pending.pop(done[0])
+            _write(out, unit.key, ray.get(done[0]))
+            bar.update()
+
+
+def run_units(units: list[Unit], out_dir: str | Path, workers: int | None = None,
+              backend: str = "process") -> tuple[list[dict], float]:
+    """Run the units not yet on disk (progress bar with ETA); return all records and the wall
+    time this call spent."""
+    if backend not in BACKENDS:
+        raise ValueError(f"harness: unknown backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     out = Path(out_dir)
     (out / "units").mkdir(parents=True, exist_ok=True)
     todo = [u for u in units if not (out / "units" / f"{u.key}.json").exists()]
-    todo.sort(key=lambda u: u.task_id)  # workers reuse the scene they built
+    todo.sort(key=lambda u: (u.scene_name, u.policy))  # workers reuse the scenes they built
     t0 = time.time()
     if todo:
         workers = workers or os.cpu_count() or 1
-        print(f"{len(units) - len(todo)} of {len(units)} units already done; running {len(todo)} on {workers} workers")
-        with ProcessPoolExecutor(max_workers=workers) as pool:
-            futures = [pool.submit(run_unit, u, str(out)) for u in todo]
-            for f in tqdm(as_completed(futures), total=len(futures), desc="units", unit="unit"):
-                f.result()
+        print(f"{len(units) - len(todo)} of {len(units)} units already done; running {len(todo)} on {workers} "
+              f"{backend} workers")
+        (_run_ray if backend == "ray" else _run_process)(todo, out, workers)
     records = []
     for u in units:
         records += json.loads((out / "units" / f"{u.key}.json").read_text())["records"]

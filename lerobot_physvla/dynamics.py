@@ -324,10 +324,14 @@ class MujocoDynamicsOracle:
         dof_ids: (n,) dof (qvel) addresses of the arm joints.
         qpos_ids: (n,) qpos addresses of the arm joints.
         site_id: the end-effector site, or body_id if the end-effector is a body.
+        include_constraint: add qfrc_constraint to tau (arms driven by a mocap weld, e.g. Fetch,
+            have no arm actuators; note it then also holds contact forces on the arm).
     """
 
-    def __init__(self, model: mujoco.MjModel, joint_names: list[str], eef_site: str | None = None, eef_body: str | None = None):
+    def __init__(self, model: mujoco.MjModel, joint_names: list[str], eef_site: str | None = None,
+                 eef_body: str | None = None, include_constraint: bool = False):
         self.model = model
+        self.include_constraint = include_constraint
         ids = []
         for name in joint_names:
             jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
@@ -384,6 +388,8 @@ class MujocoDynamicsOracle:
         mujoco.mj_comVel(m, s)
         mujoco.mj_rne(m, s, 0, self._bias)  # C(q, qdot) qdot + G(q)
         tau = data.qfrc_actuator[self.dof_ids] + data.qfrc_applied[self.dof_ids]
+        if self.include_constraint:  # mocap-driven arms (Fetch): the weld constraint moves the arm
+            tau = tau + data.qfrc_constraint[self.dof_ids]
         data = s
         mujoco.mj_fullM(m, self._full_m, data.qM)  # mujoco 3.3.7 signature
         if self.site_id >= 0:

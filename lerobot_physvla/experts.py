@@ -45,7 +45,19 @@ class ExpertConfig:
     place_bias_m: float = 0.0  # persistent x, y bias at place: direction ~ U(0, 2 pi), size ~ U(0, this), m
     premature_close: float = 0.0  # probability that the gripper closes during the approach
     no_decel: bool = False  # full-speed moves to the target (no deceleration profile)
+    # Where action_noise applies: "all" steps, or only "grasp" (within GRASP_ZONE_M of the grasp
+    # point, before lifting: the paper's Lift sweep injects its noise there).
+    noise_stage: str = "all"
+    # Persistent x, y bias on the action while moving to the release point (within GRASP_ZONE_M of
+    # it after lifting; a mis-predicted release point, so not while releasing): direction
+    # ~ U(0, 2 pi), size ~ U(0, this), action units (paper: 1.7).
+    place_bias_units: float = 0.0
+    release: bool = True  # open the gripper at the target; False holds it there (goals in the air)
     seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.noise_stage not in ("all", "grasp"):
+            raise ValueError(f"physvla: noise_stage must be 'all' or 'grasp', got {self.noise_stage!r}")
 
 
 class PickPlaceExpert:
@@ -53,6 +65,7 @@ class PickPlaceExpert:
 
     STAGES = ("hover_obj", "descend", "close", "lift", "hover_tgt", "lower", "release", "done")
     STALL_STEPS = 15
+    GRASP_ZONE_M = 0.06  # the corrector's delta_grasp: where grasp-stage noise and place bias apply
 
     def __init__(self, layout: ActionLayout = LIBERO_OSC_POSE, cfg: ExpertConfig | None = None):
         self.layout = layout
@@ -67,11 +80,16 @@ class PickPlaceExpert:
             self.rng = np.random.default_rng(seed)
         self.stage = 0
         self.count = 0
+        self._lift_z = None  # lift waypoint height, m (set when the lift starts)
         self._best, self._stall = np.inf, 0
         self.aim = np.append(self.rng.normal(0.0, c.aim_noise_m, 2), 0.0) if c.aim_noise_m > 0 else np.zeros(3)
         theta, size = self.rng.uniform(0, 2 * np.pi), self.rng.uniform(0, c.place_bias_m)
         self.place_bias = np.array([np.cos(theta) * size, np.sin(theta) * size, 0.0])
         self.close_early = bool(self.rng.uniform() < c.premature_close)
+        self.place_bias_units = np.zeros(3)
+        if c.place_bias_units > 0:  # drawn only when on, so other configs keep their random streams
+            theta, size = self.rng.uniform(0, 2 * np.pi), self.rng.uniform(0, c.place_bias_units)
+            self.place_bias_units = np.array([np.cos(theta) * size, np.sin(theta) * size, 0.0])
 
     def _move(self, eef: np.ndarray, goal: np.ndarray, fast: bool = False) -> tuple[np.ndarray, float]:
         err = goal - eef
@@ -103,7 +121,9 @@ class PickPlaceExpert:
             grip, self.count = close, self.count + 1
             done = self.count >= c.close_steps
         elif name == "lift":  # clear both the start and the target heights
-            d, err = self._move(eef_pos, np.array([*eef_pos[:2], max(place[2], grasp[2]) + c.hover_m]))
+            if self._lift_z is None:  # fixed at the lift's start: the grasp point rises with the object
+                self._lift_z = max(place[2], grasp[2]) + c.hover_m
+            d, err = self._move(eef_pos, np.array([*eef_pos[:2], self._lift_z]))
             grip, done = close, err < c.tol_m
         elif name == "hover_tgt":
             d, _ = self._move(eef_pos, place + up, fast=c.no_decel)
@@ -111,6 +131,9 @@ class PickPlaceExpert:
         elif name == "lower":
             d, err = self._move(eef_pos, place, fast=c.no_decel)
             grip, done = close, err < c.tol_m
+        elif name == "release" and not c.release:  # hold the object at the target
+            d, _ = self._move(eef_pos, place)
+            grip, done = close, False
         elif name == "release":
             d, self.count = np.zeros(3), self.count + 1
             done = self.count >= c.release_steps
@@ -126,8 +149,15 @@ class PickPlaceExpert:
             self.stage = min(self.stage + 1, len(self.STAGES) - 1)
             self.count = 0
             self._best, self._stall = np.inf, 0
+        near_grasp = name in ("descend", "close") or (
+            name == "hover_obj" and np.linalg.norm((grasp - eef_pos)[:2]) < self.GRASP_ZONE_M)
         if c.action_noise > 0:
-            d = d + np.append(self.rng.normal(0.0, c.action_noise, 2), 0.0)
+            noise = np.append(self.rng.normal(0.0, c.action_noise, 2), 0.0)
+            if c.noise_stage == "all" or near_grasp:
+                d = d + noise  # drawn every step either way, so streams match across noise_stage
+        if c.place_bias_units > 0 and (name == "lower" or (
+                name == "hover_tgt" and np.linalg.norm((place - eef_pos)[:2]) < self.GRASP_ZONE_M)):
+            d = d + self.place_bias_units
         a[list(lay.pos)] = d
         if lay.gripper is not None:
             a[lay.gripper] = grip

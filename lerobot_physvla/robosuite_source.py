@@ -4,7 +4,8 @@
 gripper finger joints, arm joints (through `MujocoDynamicsOracle`), the manipulated object and
 the target. Object and target come from the LIBERO task's own goal predicate (e.g.
 `On(akita_black_bowl_1, plate_1)` in the BDDL file), never from hard-coded names; plain
-robosuite envs (no BDDL) name them explicitly.
+robosuite envs (no BDDL) name them explicitly, or give the target as a fixed world point
+(`target_xyz`, e.g. robosuite Lift's goal in the air).
 """
 
 from __future__ import annotations
@@ -38,15 +39,19 @@ class RobosuiteStateSource:
     Attributes:
         env: the robosuite env (for LIBERO: `ControlEnv.env`); it must have been reset once.
         obj_name, target_name: LIBERO object / fixture / region names, or MuJoCo body names.
+        target_xyz: a fixed world target point, m (set it per episode), read instead of
+            target_name's body when not None.
         oracle: the MuJoCo dynamics oracle of the arm.
         obj_rest_z: the object's height at the last `reset()`, m.
         episode_step: control steps since the last `reset()`.
         failures: Counter of exception types of failed reads (those rows come back invalid).
     """
 
-    def __init__(self, env, obj_name: str | None = None, target_name: str | None = None, robot_index: int = 0):
+    def __init__(self, env, obj_name: str | None = None, target_name: str | None = None, robot_index: int = 0,
+                 target_xyz=None):
         self.env = env
-        if obj_name is None or target_name is None:
+        self.target_xyz = None if target_xyz is None else np.asarray(target_xyz, dtype=np.float64)
+        if obj_name is None or (target_name is None and target_xyz is None):
             g_obj, g_tgt = goal_object_and_target(env)
             obj_name = obj_name or g_obj
             target_name = target_name or g_tgt
@@ -59,7 +64,7 @@ class RobosuiteStateSource:
         fingers = getattr(robot, "_ref_gripper_joint_pos_indexes", None)
         self._finger_qpos = np.asarray(fingers if fingers is not None else [], dtype=np.intp)
         self._obj = self._resolve(obj_name)
-        self._tgt = self._resolve(target_name)
+        self._tgt = None if target_name is None else self._resolve(target_name)
         self.dt = 1.0 / float(env.control_freq)
         self.obj_rest_z = float("nan")
         self.episode_step = 0
@@ -117,7 +122,7 @@ class RobosuiteStateSource:
                 gripper=np.array([np.abs(fingers).sum()]),
                 obj_pos=self._pos(data, self._obj)[None],
                 obj_rest_z=np.array([self.obj_rest_z]),
-                target_pos=self._pos(data, self._tgt)[None],
+                target_pos=(self._pos(data, self._tgt) if self.target_xyz is None else self.target_xyz)[None],
                 **{k: v[None] for k, v in dyn.items()},
             )
             row = st.pack()[0]

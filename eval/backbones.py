@@ -1,0 +1,75 @@
+"""The frozen policies the harness corrects: scripted experts and trained LeRobot policies.
+
+A backbone is an object with `reset(seed)` (new episode) and `act(scene, state) -> (A,)` (the
+raw action for the current step, in the scene's action layout). The corrector never sees which
+kind it is.
+
+- Scripted experts (`ExpertBackbone`): experts.PickPlaceExpert with the paper's failure modes
+  injected (BACKBONES below), geometry from the scene (`scene.expert`).
+- Learned backbones (`LeRobotBackbone`): a LeRobot policy checkpoint (policies/train_backbones.py)
+  with its own pre/post-processors (normalisation), fed the state observation that
+  `lerobot-eval --env.type=libero_physvla --env.cameras=false` gives it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# Scripted backbones: the expert with failure modes injected (experts.ExpertConfig fields).
+BACKBONES: dict[str, dict] = {
+    "expert_clean": {},
+    # per-step lateral jitter and a grasp-aim error: a memoryless policy's imprecision
+    "expert_jitter": {"action_noise": 0.3, "aim_noise_m": 0.015},
+    # premature closes, a persistent place bias, no deceleration near the target
+    "expert_faulty": {"premature_close": 0.3, "place_bias_m": 0.04, "no_decel": True},
+}
+
+
+class ExpertBackbone:
+    """The scripted expert on one scene: `failure` = ExpertConfig fields of the failure modes."""
+
+    def __init__(self, scene, failure: dict):
+        from lerobot_physvla.experts import ExpertConfig, PickPlaceExpert
+
+        self.expert = PickPlaceExpert(layout=scene.layout, cfg=ExpertConfig(**{**scene.expert, **failure}))
+
+    def reset(self, seed: int) -> None:
+        self.expert.reset(seed=seed)
+
+    def act(self, scene, state) -> np.ndarray:
+        return self.expert.act(state.eef_pos[0], state.obj_pos[0], state.target_pos[0])
+
+
+class LeRobotBackbone:
+    """A trained LeRobot policy (checkpoint directory `path`) acting on a LIBERO scene.
+
+    Attributes:
+        policy: the PreTrainedPolicy (eval mode, CPU).
+        preprocess, postprocess: its saved processor pipelines (normalisation in / out).
+    """
+
+    def __init__(self, path: str):
+        import torch
+
+        from lerobot.configs.policies import PreTrainedConfig
+        from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+        cfg = PreTrainedConfig.from_pretrained(path)
+        cfg.device = "cpu"
+        self.policy = get_policy_class(cfg.type).from_pretrained(path, config=cfg)
+        self.policy.eval()
+        self.preprocess, self.postprocess = make_pre_post_processors(cfg, pretrained_path=path)
+        self._torch = torch
+
+    def reset(self, seed: int) -> None:
+        self._torch.manual_seed(seed)  # diffusion sampling noise: matched across modes per seed
+        self.policy.reset()
+
+    def act(self, scene, state) -> np.ndarray:
+        torch = self._torch
+        obs = scene.policy_observation(state)
+        batch = {k: torch.from_numpy(v)[None] for k, v in obs.items()}
+        batch["task"] = [scene.task.language]
+        with torch.inference_mode():
+            action = self.postprocess(self.policy.select_action(self.preprocess(batch)))
+        return action[0].double().numpy()

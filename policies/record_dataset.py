@@ -1,0 +1,124 @@
+"""Record scripted-expert rollouts on LIBERO-Spatial into a local LeRobotDataset (v3), state only.
+
+    .venv/bin/python policies/record_dataset.py [--out outputs/datasets/physvla_libero_spatial]
+        [--seeds 10-39] [--tasks 0-9] [--dart-sigma 0.1] [--workers 2]
+
+Each frame holds what a state-based policy sees in `lerobot-eval --env.type=libero_physvla
+--env.cameras=false` (scenes.LiberoScene.policy_observation):
+    observation.state              eef xyz, eef axis-angle, finger qpos       (8, float32)
+    observation.environment_state  object xyz, target xyz (from the BDDL goal) (6, float32)
+    action                         the clean expert's action, LIBERO OSC_POSE  (7, float32)
+    task                           the task's language instruction
+Only successful episodes are kept. With --dart-sigma > 0 the *executed* action gets Gaussian
+x, y noise (action units) while the *recorded* label stays the expert's clean action (DART), so
+the demonstrations cover the states a slightly-off learned policy will visit.
+
+Init states: LIBERO has 50 per task; evaluation (eval/experiments.py) uses seeds 0..N-1, so the
+default training seeds 10-39 never overlap the evaluation's first 10.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+FPS = 20  # LIBERO's control frequency
+HORIZON = 280
+STATE_NAMES = ["eef_x", "eef_y", "eef_z", "eef_ax", "eef_ay", "eef_az", "finger_l", "finger_r"]
+ENV_NAMES = ["obj_x", "obj_y", "obj_z", "tgt_x", "tgt_y", "tgt_z"]
+ACTION_NAMES = ["dx", "dy", "dz", "drx", "dry", "drz", "gripper"]
+FEATURES = {
+    "observation.state": {"dtype": "float32", "shape": (8,), "names": STATE_NAMES},
+    "observation.environment_state": {"dtype": "float32", "shape": (6,), "names": ENV_NAMES},
+    "action": {"dtype": "float32", "shape": (7,), "names": ACTION_NAMES},
+}
+
+
+def parse_range(text: str) -> list[int]:
+    """'10-29' -> [10, ..., 29]; '0,3,5' -> [0, 3, 5]."""
+    out = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        out += list(range(int(lo), int(hi or lo) + 1))
+    return out
+
+
+def rollout(task_id: int, seeds: list[int], dart_sigma: float) -> list[dict]:
+    """Expert episodes of one task; returns the successful ones as arrays (runs in a worker)."""
+    from lerobot_physvla.experts import PickPlaceExpert
+    from lerobot_physvla.scenes import LiberoScene
+
+    scene = LiberoScene("libero_spatial", task_id)
+    expert = PickPlaceExpert()
+    episodes = []
+    for seed in seeds:
+        scene.reset(seed)
+        expert.reset(seed=seed)
+        rng = np.random.default_rng(10_000 + seed)
+        obs_s, obs_e, acts, success = [], [], [], False
+        for _ in range(HORIZON):
+            st = scene.read()
+            o = scene.policy_observation(st)
+            a = expert.act(st.eef_pos[0], st.obj_pos[0], st.target_pos[0])
+            obs_s.append(o["observation.state"])
+            obs_e.append(o["observation.environment_state"])
+            acts.append(a.astype(np.float32))
+            executed = a.copy()
+            if dart_sigma > 0:
+                executed[:2] = np.clip(executed[:2] + rng.normal(0.0, dart_sigma, 2), -1.0, 1.0)
+            success, _ = scene.step(executed)
+            if success:
+                break
+        if success:
+            episodes.append({"task_id": task_id, "seed": seed, "task": scene.task.language,
+                             "state": np.asarray(obs_s), "env": np.asarray(obs_e), "action": np.asarray(acts)})
+    return episodes
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", default="outputs/datasets/physvla_libero_spatial", help="dataset root (replaced)")
+    ap.add_argument("--repo-id", default="local/physvla_libero_spatial")
+    ap.add_argument("--tasks", default="0-9")
+    ap.add_argument("--seeds", default="10-39", help="LIBERO init-state indices to record")
+    ap.add_argument("--dart-sigma", type=float, default=0.1)
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    args = ap.parse_args()
+
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    tasks, seeds = parse_range(args.tasks), parse_range(args.seeds)
+    t0 = time.time()
+    episodes = []
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        futures = [pool.submit(rollout, t, seeds, args.dart_sigma) for t in tasks]
+        for f in tqdm(futures, desc="tasks", unit="task"):
+            episodes += f.result()
+    out = Path(args.out)
+    if out.exists():
+        shutil.rmtree(out)
+    ds = LeRobotDataset.create(args.repo_id, fps=FPS, features=FEATURES, root=out, robot_type="panda", use_videos=False)
+    for ep in tqdm(episodes, desc="writing", unit="episode"):
+        for s, e, a in zip(ep["state"], ep["env"], ep["action"]):
+            ds.add_frame({"observation.state": s, "observation.environment_state": e, "action": a, "task": ep["task"]})
+        ds.save_episode()
+    ds.finalize()
+    kept = {t: sum(e["task_id"] == t for e in episodes) for t in tasks}
+    frames = sum(len(e["action"]) for e in episodes)
+    print(f"recorded {len(episodes)} of {len(tasks) * len(seeds)} episodes (successful only), {frames} frames, "
+          f"in {time.time() - t0:.0f} s -> {out}")
+    print("kept per task: " + ", ".join(f"T{t}: {k}/{len(seeds)}" for t, k in kept.items()))
+    if not episodes:
+        sys.exit("record_dataset: no successful episode; nothing to train on")
+
+
+if __name__ == "__main__":
+    main()
