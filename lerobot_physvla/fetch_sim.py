@@ -29,10 +29,9 @@ ARM_JOINTS = tuple(
 FINGER_JOINTS = ("robot0:l_gripper_finger_joint", "robot0:r_gripper_finger_joint")  # slides, 0 .. 0.05 m each
 EEF_SITE = "robot0:grip"  # between the fingertips
 OBJ_SITE = "object0"  # centre of the 0.05 m cube; the env scores this site against the goal
-# Control steps per episode (3.2 s at 0.04 s). gym's default is 50, but PickPlaceExpert's lift
-# waypoint rises with the grasped cube, so its lift leg ends only on the 15-step stall rule: over
-# seeds 0..49 it enters its hold stage at step 46 median, 57 at most (at 50 steps: 42/50 succeed).
-HORIZON = 80
+# Control steps per episode: gym's own limit (2 s at 0.04 s). The clean expert holds the cube at
+# the goal by step ~45 (seeds 0..49).
+HORIZON = 50
 
 
 def make_fetch_env(max_episode_steps: int = HORIZON) -> gym.Env:

@@ -53,6 +53,13 @@ def make_lift_env(horizon: int = HORIZON):
         np.random.set_state(rng_state)
 
 
+def lift_expert(plate: bool) -> dict:
+    """ExpertConfig overrides for the cube: grasp at its centre, 6 cm hover legs; lift holds it at
+    the goal (release=False), lift_plate lets go RELEASE_HEIGHT_M above the plate."""
+    return {"grasp_offset_m": (0.0, 0.0, 0.0), "hover_m": 0.06, "release": plate,
+            "place_offset_m": (0.0, 0.0, RELEASE_HEIGHT_M if plate else 0.0)}
+
+
 class LiftScene:
     """robosuite Lift (plate=False) or Lift + place-on-plate (plate=True); see the module docstring.
 
@@ -81,8 +88,7 @@ class LiftScene:
         self.plate = plate
         self.name = "lift_plate" if plate else "lift"
         self.stop_on_success = plate
-        self.expert = {"grasp_offset_m": (0.0, 0.0, 0.0), "hover_m": 0.06, "release": plate,
-                       "place_offset_m": (0.0, 0.0, RELEASE_HEIGHT_M if plate else 0.0)}
+        self.expert = lift_expert(plate)
         self.env = make_lift_env(self.horizon)
         self.env.reset()
         self.table_top_z = float(self.env.table_offset[2])

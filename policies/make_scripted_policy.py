@@ -1,7 +1,12 @@
 """Save the scripted expert as a LeRobot policy checkpoint (`--policy.path` loads it).
 
     .venv/bin/python policies/make_scripted_policy.py OUT_DIR [--action_noise 0.1] [--aim_noise_m 0.01]
-        [--place_bias_m 0.03] [--premature_close 0.2] [--no_decel] [--seed 0]
+        [--place_bias_m 0.03] [--premature_close 0.2] [--no_decel] [--noise_stage grasp]
+        [--place_bias_units 1.7] [--seed 0] [--scene libero_spatial|lift|lift_plate|fetch_pick_place]
+
+--scene takes the action layout and waypoint geometry of that scene (lerobot_physvla.scenes);
+LeRobot env types exist for LIBERO only, so the lift / fetch policies run in the project's own
+harness or any env that feeds the same observation.
 
 The checkpoint has no learned weights: config.json, an empty model file and lerobot's default
 processors (identity normalisation). Evaluate it state-only:
@@ -18,6 +23,22 @@ from lerobot_physvla.scripted_policy.configuration_physvla_scripted import PhysV
 from lerobot_physvla.scripted_policy.modeling_physvla_scripted import PhysVLAScriptedPolicy
 
 
+SCENES = ("libero_spatial", "lift", "lift_plate", "fetch_pick_place")
+
+
+def scene_fit(scene: str) -> dict:
+    """layout + expert geometry of a scene (its class attributes; no sim is built)."""
+    if scene == "libero_spatial":
+        return {}
+    if scene == "fetch_pick_place":
+        from lerobot_physvla.fetch_sim import FetchScene
+
+        return {"layout": "fetch_4d", "expert": dict(FetchScene.expert)}
+    from lerobot_physvla.lift_sim import lift_expert
+
+    return {"expert": lift_expert(plate=scene == "lift_plate")}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("out")
@@ -26,10 +47,13 @@ def main() -> None:
     ap.add_argument("--place_bias_m", type=float, default=0.0)
     ap.add_argument("--premature_close", type=float, default=0.0)
     ap.add_argument("--no_decel", action="store_true")
+    ap.add_argument("--noise_stage", choices=("all", "grasp"), default="all")
+    ap.add_argument("--place_bias_units", type=float, default=0.0)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--scene", choices=SCENES, default="libero_spatial")
     args = vars(ap.parse_args())
-    out = args.pop("out")
-    cfg = PhysVLAScriptedConfig(device="cpu", **args)
+    out, fit = args.pop("out"), scene_fit(args.pop("scene"))
+    cfg = PhysVLAScriptedConfig(device="cpu", **args, **fit)
     policy = PhysVLAScriptedPolicy(cfg)
     pre, post = make_default_pre_post_processors(cfg, None, normalizer_device="cpu")
     policy.save_pretrained(out)

@@ -35,17 +35,18 @@ _COMMON = ["--policy.device=cpu", "--policy.push_to_hub=false", "--wandb.enable=
            "--num_workers=1", "--log_freq=200", f"--seed={SEED}"]
 _ACT = ["--policy.type=act", "--policy.dim_model=128", "--policy.n_heads=4", "--policy.dim_feedforward=512",
         "--policy.n_encoder_layers=2", "--policy.n_decoder_layers=1", "--policy.latent_dim=16",
-        "--policy.optimizer_lr=3e-4", "--batch_size=64"]
+        "--policy.optimizer_lr=3e-4", "--batch_size=32"]
 _DIFFUSION = ["--policy.type=diffusion", "--policy.n_obs_steps=2", "--policy.horizon=16",
               "--policy.down_dims=[64,128,256]", "--policy.diffusion_step_embed_dim=64",
-              "--policy.noise_scheduler_type=DDIM", "--policy.num_inference_steps=10", "--batch_size=64"]
+              "--policy.noise_scheduler_type=DDIM", "--policy.num_inference_steps=10", "--policy.optimizer_lr=3e-4",
+              "--batch_size=32"]
 
 RECIPES: dict[str, list[str]] = {
     "act_single": _ACT + ["--policy.chunk_size=1", "--policy.n_action_steps=1", "--policy.use_vae=false",
-                          "--steps=4000", "--save_freq=4000"],
-    "act_chunk": _ACT + ["--policy.chunk_size=20", "--policy.n_action_steps=10", "--steps=4000", "--save_freq=4000"],
-    "diffusion_single": _DIFFUSION + ["--policy.n_action_steps=1", "--steps=6000", "--save_freq=6000"],
-    "diffusion_chunk": _DIFFUSION + ["--policy.n_action_steps=8", "--steps=6000", "--save_freq=6000"],
+                          "--steps=3000", "--save_freq=3000"],
+    "act_chunk": _ACT + ["--policy.chunk_size=20", "--policy.n_action_steps=10", "--steps=3000", "--save_freq=3000"],
+    "diffusion_single": _DIFFUSION + ["--policy.n_action_steps=1", "--steps=4000", "--save_freq=4000"],
+    "diffusion_chunk": _DIFFUSION + ["--policy.n_action_steps=8", "--steps=4000", "--save_freq=4000"],
 }
 
 

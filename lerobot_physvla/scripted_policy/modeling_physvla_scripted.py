@@ -8,6 +8,7 @@ from torch import Tensor
 
 from lerobot.policies.pretrained import PreTrainedPolicy
 
+from ..config import LAYOUTS
 from ..experts import ExpertConfig, PickPlaceExpert
 from .configuration_physvla_scripted import PhysVLAScriptedConfig
 
@@ -25,8 +26,11 @@ class PhysVLAScriptedPolicy(PreTrainedPolicy):
 
     def _expert_cfg(self, index: int) -> ExpertConfig:
         c = self.config
-        return ExpertConfig(action_noise=c.action_noise, aim_noise_m=c.aim_noise_m, place_bias_m=c.place_bias_m,
-                            premature_close=c.premature_close, no_decel=c.no_decel, seed=c.seed + index)
+        geometry = {k: tuple(v) if isinstance(v, list) else v for k, v in c.expert.items()}  # JSON lists -> tuples
+        return ExpertConfig(**{**geometry, "action_noise": c.action_noise, "aim_noise_m": c.aim_noise_m,
+                               "place_bias_m": c.place_bias_m, "premature_close": c.premature_close,
+                               "no_decel": c.no_decel, "noise_stage": c.noise_stage,
+                               "place_bias_units": c.place_bias_units, "seed": c.seed + index})
 
     def reset(self):
         """New rollout batch: fresh experts (seeded per episode, so runs are reproducible)."""
@@ -48,7 +52,7 @@ class PhysVLAScriptedPolicy(PreTrainedPolicy):
         scene = batch["observation.environment_state"].detach().cpu().double().numpy()
         b = state.shape[0]
         while len(self.experts) < b:
-            self.experts.append(PickPlaceExpert(cfg=self._expert_cfg(self._episodes)))
+            self.experts.append(PickPlaceExpert(LAYOUTS[self.config.layout], cfg=self._expert_cfg(self._episodes)))
             self._episodes += 1
         out = np.stack([self.experts[i].act(state[i, :3], scene[i, :3], scene[i, 3:6]) for i in range(b)])
         return torch.from_numpy(out).to(device=self._anchor.device, dtype=torch.float32)
