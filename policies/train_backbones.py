@@ -45,8 +45,9 @@ _DIFFUSION = ["--policy.type=diffusion", "--policy.n_obs_steps=2", "--policy.hor
               "--batch_size=32"]
 
 RECIPES: dict[str, list[str]] = {
+    # a chunk-1 sample reads 1 action frame instead of 20, so 5x the steps cost about the same time
     "act_single": _ACT + ["--policy.chunk_size=1", "--policy.n_action_steps=1", "--policy.use_vae=false",
-                          "--steps=3000", "--save_freq=3000"],
+                          "--steps=15000", "--save_freq=15000"],
     "act_chunk": _ACT + ["--policy.chunk_size=20", "--policy.n_action_steps=10", "--steps=3000", "--save_freq=3000"],
     "diffusion_single": _DIFFUSION + ["--policy.n_action_steps=1", "--steps=4000", "--save_freq=4000"],
     "diffusion_chunk": _DIFFUSION + ["--policy.n_action_steps=8", "--steps=4000", "--save_freq=4000"],
