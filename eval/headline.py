@@ -1,0 +1,127 @@
+"""The README's headline numbers, computed from the committed per-episode records.
+
+    .venv/bin/python eval/headline.py           # print the block
+    .venv/bin/python eval/headline.py --write   # replace it in README.md (between the markers)
+
+Nothing here is typed by hand: every number comes from eval/results/<experiment>/records.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from lerobot_physvla import metrics  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "eval" / "results"
+START, END = "<!-- headline:start -->", "<!-- headline:end -->"
+MODES = ("baseline", "temporal", "phys", "phys_el")
+
+
+def _records(name: str) -> list[dict] | None:
+    path = RESULTS / name / "records.json"
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def _rate(recs: list[dict]) -> str:
+    k, n = sum(r["success"] for r in recs), len(recs)
+    lo, hi = metrics.wilson_interval(k, n)
+    return f"{k / n:.0%} [{lo * 100:.0f}, {hi * 100:.0f}] (n={n})"
+
+
+def _group(recs, *keys):
+    out = defaultdict(list)
+    for r in recs:
+        out[tuple(r[k] for k in keys)].append(r)
+    return out
+
+
+def _jerk(recs) -> float:
+    return float(np.mean([r["mean_jerk"] for r in recs]))
+
+
+def success_table(name: str, title: str) -> list[str]:
+    recs = _records(name)
+    if not recs:
+        return []
+    g = _group(recs, "backbone", "config")
+    backbones = list(dict.fromkeys(r["backbone"] for r in recs))
+    modes = [m for m in MODES if any((b, m) in g for b in backbones)]
+    lines = [f"**{title}** ([eval/results/{name}](eval/results/{name}/README.md)): success [95 % Wilson CI], "
+             "mean end-effector jerk (m/s^3)\n", "| backbone | " + " | ".join(modes) + " |",
+             "|---|" + "---|" * len(modes)]
+    for b in backbones:
+        lines.append(f"| {b} | " + " | ".join(f"{_rate(g[(b, m)])}; {_jerk(g[(b, m)]):.1f}" for m in modes) + " |")
+    return lines + [""]
+
+
+def sweep_table(name: str, title: str) -> list[str]:
+    recs = _records(name)
+    if not recs:
+        return []
+    g = _group(recs, "backbone", "config")
+    modes = list(dict.fromkeys(r["config"] for r in recs))
+    lo, hi = "sigma=0.00", "sigma=0.40"
+    lines = [f"**{title}** ([eval/results/{name}](eval/results/{name}/README.md)): success pooled over the 7 noise "
+             "levels; mean jerk (m/s^3) at sigma 0 and 0.40 and its degradation\n",
+             "| mode | success (all sigmas) | jerk sigma=0 | jerk sigma=0.40 | degradation |", "|---|---|---|---|---|"]
+    for m in modes:
+        j0, j1 = _jerk(g[(lo, m)]), _jerk(g[(hi, m)])
+        lines.append(f"| {m} | {_rate([r for r in recs if r['config'] == m])} | {j0:.2f} | {j1:.2f} | {(j1 - j0) / j0:+.0%} |")
+    return lines + [""]
+
+
+def paired_table(name: str, title: str) -> list[str]:
+    recs = _records(name)
+    if not recs:
+        return []
+    by = {(r["config"], r["task_id"], r["seed"]): r for r in recs}
+    modes = list(dict.fromkeys(r["config"] for r in recs))
+    lines = [f"**{title}** ([eval/results/{name}](eval/results/{name}/README.md))\n",
+             "| mode | success | pairs won vs baseline | pairs lost |", "|---|---|---|---|"]
+    for m in modes:
+        mine = [r for r in recs if r["config"] == m]
+        won = sum(r["success"] and not by[("baseline", r["task_id"], r["seed"])]["success"] for r in mine)
+        lost = sum(not r["success"] and by[("baseline", r["task_id"], r["seed"])]["success"] for r in mine)
+        lines.append(f"| {m} | {_rate(mine)} | {won} | {lost} |")
+    return lines + [""]
+
+
+def block() -> str:
+    lines = [START, ""]
+    lines += success_table("table2", "LIBERO-Spatial, scripted backbones x modes (10 tasks x 5 seeds)")
+    lines += success_table("learned", "LIBERO-Spatial, learned backbones (LeRobot ACT / Diffusion, state inputs) x modes")
+    lines += sweep_table("lift_sweep", "robosuite Lift, grasp-phase noise sweep (20 trials per cell)")
+    lines += sweep_table("fetch_sweep", "FetchPickAndPlace (4-D actions, another arm), same sweep")
+    lines += paired_table("lift_plate", "Lift + place-on-plate, persistent place bias, 20 matched pairs")
+    lines += paired_table("place_bias", "LIBERO-Spatial, persistent place bias, 20 matched pairs")
+    lines.append(END)
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--write", action="store_true", help="replace the block in README.md")
+    args = ap.parse_args()
+    text = block()
+    if not args.write:
+        print(text)
+        return
+    readme = ROOT / "README.md"
+    old = readme.read_text()
+    if START not in old or END not in old:
+        raise SystemExit(f"headline: README.md has no {START} ... {END} block to replace")
+    readme.write_text(re.sub(re.escape(START) + ".*?" + re.escape(END), lambda _: text, old, flags=re.S))
+    print("headline: README.md updated")
+
+
+if __name__ == "__main__":
+    main()
