@@ -373,14 +373,20 @@ def learned(args) -> None:
         for n in names for m in MODES for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
     ]
     records, secs = run_units(units, out, args.workers, args.backend)
+    (out / "recipes").mkdir(exist_ok=True)
+    for n in names:  # provenance: the lerobot-train command, seed and training time of each checkpoint
+        recipe = ckpt_root / n / "checkpoints" / "last" / "pretrained_model" / "recipe.json"
+        if recipe.exists():
+            (out / "recipes" / f"{n}.json").write_text(recipe.read_text())
     agg = aggregate(records)
     rows = [(n, m) for n in names for m in MODES]
     pt, flags = per_task_table(records, names, MODES)
     plot_success(agg, rows, out / "success_jerk.png", "LIBERO-Spatial, learned backbones x modes")
     lines = header("Learned backbones (LeRobot ACT / Diffusion, state inputs) x modes on LIBERO-Spatial", secs,
                    len(units), about=(
-                       "Backbones: LeRobot policies trained on the CPU by policies/train_backbones.py (recipes and "
-                       "seeds in recipe.json beside each checkpoint) from scripted-expert demonstrations on init "
+                       "Backbones: LeRobot policies trained on the CPU by policies/train_backbones.py (each one's "
+                       "lerobot-train command, seed and training time: recipes/<name>.json) from scripted-expert "
+                       "demonstrations (clean expert, DART noise 0.1, successful episodes only) on init "
                        "states 10-39 (policies/record_dataset.py); evaluated on init states 0 .. per-task - 1. Success "
                        "is LIBERO's own check; rates with 95 % Wilson intervals."))
     lines += ["## Aggregate over the 10 tasks\n", *summary_table(agg, rows), "",
