@@ -44,7 +44,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import harness  # noqa: E402
-from harness import BACKBONES, BACKENDS, Unit, seed_blocks  # noqa: E402
+from backbones import BACKBONES  # noqa: E402
+from harness import BACKENDS, Unit, seed_blocks  # noqa: E402
 
 from lerobot_physvla import metrics  # noqa: E402
 from lerobot_physvla.config import PhysVLAConfig  # noqa: E402
@@ -133,6 +134,23 @@ def per_task_table(records, backbones, configs, base="baseline") -> tuple[list[s
                 cells.append(cell)
             lines.append(f"| {b} | {c} | " + " | ".join(cells) + " |")
     return lines, flags
+
+
+def paired_table(records, pairs: list[tuple[int, int]], modes=("phys", "phys_el")) -> list[str]:
+    """Outcomes of each corrected mode against baseline over matched (task_id, seed) pairs."""
+    by = {(r["config"], r["task_id"], r["seed"]): r for r in records}
+    lines = ["| mode | both succeed | only corrected | only baseline | both fail | mean jerk change (m/s^3) |",
+             "|---|---|---|---|---|---|"]
+    for c in modes:
+        cnt = defaultdict(int)
+        dj = []
+        for t, k in pairs:
+            a, b = by[(c, t, k)], by[("baseline", t, k)]
+            cnt[(a["success"], b["success"])] += 1
+            dj.append(a["mean_jerk"] - b["mean_jerk"])
+        lines.append(f"| {c} | {cnt[(True, True)]} | {cnt[(True, False)]} | {cnt[(False, True)]} | "
+                     f"{cnt[(False, False)]} | {np.mean(dj):+.3f} |")
+    return lines
 
 
 def plot_success(agg: dict, rows: list[tuple], path: Path, title: str) -> None:
@@ -224,23 +242,12 @@ def place_bias(args) -> None:
     units = [Unit("expert_place_bias", name, cfg.to_dict(), k % 10, k, 1, expert)
              for name, cfg in configs.items() for k in range(args.pairs)]
     records, secs = run_units(units, out, args.workers, args.backend)
-    by = {(r["config"], r["task_id"], r["seed"]): r for r in records}
     agg = aggregate(records)
     rows = [("expert_place_bias", c) for c in configs]
     lines = header(f"Matched-seed place-bias study (bias direction ~ U(0, 2 pi), size ~ U(0, {args.bias_m} m))",
                    secs, len(units))
     lines += summary_table(agg, rows) + ["", "## Paired outcomes against baseline (same task, init state, drawn bias)\n",
-                                         "| mode | both succeed | only corrected | only baseline | both fail | mean jerk change (m/s^3) |",
-                                         "|---|---|---|---|---|---|"]
-    for c in ("phys", "phys_el"):
-        cnt = defaultdict(int)
-        dj = []
-        for k in range(args.pairs):
-            a, b = by[(c, k % 10, k)], by[("baseline", k % 10, k)]
-            cnt[(a["success"], b["success"])] += 1
-            dj.append(a["mean_jerk"] - b["mean_jerk"])
-        lines.append(f"| {c} | {cnt[(True, True)]} | {cnt[(True, False)]} | {cnt[(False, True)]} | "
-                     f"{cnt[(False, False)]} | {np.mean(dj):+.3f} |")
+                                         *paired_table(records, [(k % 10, k) for k in range(args.pairs)])]
     plot_success(agg, rows, out / "success_jerk.png", "place-bias study")
     lines += ["", "![success and jerk](success_jerk.png)"]
     write(out, lines, records)
@@ -346,26 +353,15 @@ def lift_plate(args) -> None:
     units = [Unit("expert_place_bias", name, cfg.to_dict(), 0, 7, args.pairs, expert, scene="lift_plate")
              for name, cfg in configs.items()]
     records, secs = run_units(units, out, args.workers, args.backend)
-    by = {(r["config"], r["seed"]): r for r in records}
     agg = aggregate(records)
     rows = [("expert_place_bias", c) for c in configs]
     lines = header(f"Lift + place-on-plate, matched seeds, persistent place bias ~ U(0, {args.bias_units}) action units",
                    secs, len(units), "robosuite 1.4 Lift + plate check (lerobot_physvla/lift_sim.py)", about=(
                        "Backbone: the scripted expert with a persistent x, y action bias during place (direction ~ "
-                       "U(0, 2 pi), size ~ U(0, 1.7) action units, drawn per seed, identical across modes); seeds "
+                       f"U(0, 2 pi), size ~ U(0, {args.bias_units}) action units, drawn per seed, identical across modes); seeds "
                        "7 .. 7 + pairs - 1. Success: cube at rest on the 4.5 cm plate disk, gripper open, 5 steps."))
     lines += summary_table(agg, rows) + ["", "## Paired outcomes against baseline (same seed: same cube, same bias)\n",
-                                         "| mode | both succeed | only corrected | only baseline | both fail | mean jerk change (m/s^3) |",
-                                         "|---|---|---|---|---|---|"]
-    for c in ("phys", "phys_el"):
-        cnt = defaultdict(int)
-        dj = []
-        for k in range(7, 7 + args.pairs):
-            a, b = by[(c, k)], by[("baseline", k)]
-            cnt[(a["success"], b["success"])] += 1
-            dj.append(a["mean_jerk"] - b["mean_jerk"])
-        lines.append(f"| {c} | {cnt[(True, True)]} | {cnt[(True, False)]} | {cnt[(False, True)]} | "
-                     f"{cnt[(False, False)]} | {np.mean(dj):+.3f} |")
+                                         *paired_table(records, [(0, k) for k in range(7, 7 + args.pairs)])]
     lines += ["", "Paper (n = 20 pairs): baseline 35 %, PhysVLA 95 %.", "", "![success and jerk](success_jerk.png)"]
     plot_success(agg, rows, out / "success_jerk.png", "Lift + place-on-plate, place bias")
     write(out, lines, records)

@@ -26,7 +26,7 @@ import numpy as np
 from tqdm import tqdm
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from backbones import BACKBONES, ExpertBackbone, LeRobotBackbone  # noqa: E402,F401
+from backbones import ExpertBackbone, LeRobotBackbone  # noqa: E402
 
 BACKENDS = ("process", "ray")
 
