@@ -29,7 +29,7 @@ class ExpertBackbone:
     """The scripted expert on one scene: `failure` = ExpertConfig fields of the failure modes."""
 
     def __init__(self, scene, failure: dict):
-        from lerobot_physvla.experts import ExpertConfig, PickPlaceExpert
+        from lerobot_physvla.sim.experts import ExpertConfig, PickPlaceExpert
 
         self.expert = PickPlaceExpert(layout=scene.layout, cfg=ExpertConfig(**{**scene.expert, **failure}))
 

@@ -23,12 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_physvla import libero_sim
-from lerobot_physvla.config import PhysVLAConfig
-from lerobot_physvla.corrector import Corrector
-from lerobot_physvla.experts import PickPlaceExpert
-from lerobot_physvla.robosuite_source import RobosuiteStateSource
-from lerobot_physvla.state import PhysState
+from lerobot_physvla.sim import libero_sim
+from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.sim.experts import PickPlaceExpert
+from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+from lerobot_physvla.core.state import PhysState
 
 CONFIGS = {
     "no-op (identity function)": None,

@@ -48,7 +48,7 @@ from backbones import BACKBONES  # noqa: E402
 from harness import BACKENDS, Unit, seed_blocks  # noqa: E402
 
 from lerobot_physvla import metrics  # noqa: E402
-from lerobot_physvla.config import PhysVLAConfig  # noqa: E402
+from lerobot_physvla.core.config import PhysVLAConfig  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 MODES = ("baseline", "temporal", "phys", "phys_el")
@@ -356,7 +356,7 @@ def lift_plate(args) -> None:
     agg = aggregate(records)
     rows = [("expert_place_bias", c) for c in configs]
     lines = header(f"Lift + place-on-plate, matched seeds, persistent place bias ~ U(0, {args.bias_units}) action units",
-                   secs, len(units), "robosuite 1.4 Lift + plate check (lerobot_physvla/lift_sim.py)", about=(
+                   secs, len(units), "robosuite 1.4 Lift + plate check (lerobot_physvla/sim/lift_sim.py)", about=(
                        "Backbone: the scripted expert with a persistent x, y action bias during place (direction ~ "
                        f"U(0, 2 pi), size ~ U(0, {args.bias_units}) action units, drawn per seed, identical across modes); seeds "
                        "7 .. 7 + pairs - 1. Success: cube at rest on the 4.5 cm plate disk, gripper open, 5 steps."))

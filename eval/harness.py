@@ -1,6 +1,6 @@
 """Evaluation harness: units of work over (backbone, mode, scene, seed block), run in parallel.
 
-A unit runs its episodes in one process on a state-only scene (lerobot_physvla.scenes: LIBERO,
+A unit runs its episodes in one process on a state-only scene (lerobot_physvla.sim.scenes: LIBERO,
 robosuite Lift, Fetch) with the core library alone (no LeRobot in the loop for scripted
 backbones: the same corrector, state sources and metrics that `lerobot-eval
 --policy.postprocess=physvla` uses) and writes one JSON of per-episode records. Units already on
@@ -70,7 +70,7 @@ _POLICIES: dict[str, LeRobotBackbone] = {}  # per worker process: checkpoint -> 
 
 
 def _scene(name: str):
-    from lerobot_physvla.scenes import make_scene
+    from lerobot_physvla.sim.scenes import make_scene
 
     if name not in _SCENES:
         _SCENES[name] = make_scene(name)
@@ -138,8 +138,8 @@ def run_episode(scene, corrector, backbone, seed: int) -> dict:
 
 def compute_unit(unit: Unit) -> dict:
     """Run one unit's episodes; returns {"unit", "seconds", "records"} (what run_unit writes)."""
-    from lerobot_physvla.config import PhysVLAConfig
-    from lerobot_physvla.corrector import Corrector
+    from lerobot_physvla.core.config import PhysVLAConfig
+    from lerobot_physvla.core.corrector import Corrector
 
     scene = _scene(unit.scene_name)
     corrector = Corrector(PhysVLAConfig.from_dict(unit.config))

@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import metrics
-from .phase import PHASE_NAMES
-from .state import REASONS
+from lerobot_physvla import metrics
+from lerobot_physvla.core.phase import PHASE_NAMES
+from lerobot_physvla.core.state import REASONS
 
 
 class _Episode:

@@ -4,7 +4,7 @@
         [--place_bias_m 0.03] [--premature_close 0.2] [--no_decel] [--noise_stage grasp]
         [--place_bias_units 1.7] [--seed 0] [--scene libero_spatial|lift|lift_plate|fetch_pick_place]
 
---scene takes the action layout and waypoint geometry of that scene (lerobot_physvla.scenes);
+--scene takes the action layout and waypoint geometry of that scene (lerobot_physvla.sim.scenes);
 LeRobot env types exist for LIBERO only, so the lift / fetch policies run in the project's own
 harness or any env that feeds the same observation.
 
@@ -19,8 +19,8 @@ import argparse
 
 from lerobot.processor.factory import make_default_pre_post_processors
 
-from lerobot_physvla.scripted_policy.configuration_physvla_scripted import PhysVLAScriptedConfig
-from lerobot_physvla.scripted_policy.modeling_physvla_scripted import PhysVLAScriptedPolicy
+from lerobot_physvla.policies.physvla_scripted.configuration_physvla_scripted import PhysVLAScriptedConfig
+from lerobot_physvla.policies.physvla_scripted.modeling_physvla_scripted import PhysVLAScriptedPolicy
 
 
 SCENES = ("libero_spatial", "lift", "lift_plate", "fetch_pick_place")
@@ -31,10 +31,10 @@ def scene_fit(scene: str) -> dict:
     if scene == "libero_spatial":
         return {}
     if scene == "fetch_pick_place":
-        from lerobot_physvla.fetch_sim import FetchScene
+        from lerobot_physvla.sim.fetch_sim import FetchScene
 
         return {"layout": "fetch_4d", "expert": dict(FetchScene.expert)}
-    from lerobot_physvla.lift_sim import lift_expert
+    from lerobot_physvla.sim.lift_sim import lift_expert
 
     return {"expert": lift_expert(plate=scene == "lift_plate")}
 

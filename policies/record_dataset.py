@@ -53,8 +53,8 @@ def parse_range(text: str) -> list[int]:
 
 def rollout(task_id: int, seeds: list[int], dart_sigma: float) -> list[dict]:
     """Expert episodes of one task; returns the successful ones as arrays (runs in a worker)."""
-    from lerobot_physvla.experts import PickPlaceExpert
-    from lerobot_physvla.scenes import LiberoScene
+    from lerobot_physvla.sim.experts import PickPlaceExpert
+    from lerobot_physvla.sim.scenes import LiberoScene
 
     scene = LiberoScene("libero_spatial", task_id)
     expert = PickPlaceExpert()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lerobot_physvla.state import PhysState
+from lerobot_physvla.core.state import PhysState
 
 
 def make_state(
@@ -41,7 +41,7 @@ def make_state(
 @pytest.fixture(scope="session")
 def libero_task0():
     """LIBERO-Spatial task 0 built offline with no renderer, reset to init state 0."""
-    from lerobot_physvla import libero_sim
+    from lerobot_physvla.sim import libero_sim
 
     task = libero_sim.load_task("libero_spatial", 0)
     env = libero_sim.make_libero_env(task)

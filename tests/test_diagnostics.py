@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from lerobot_physvla.config import PhysVLAConfig
-from lerobot_physvla.corrector import Corrector
+from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.diagnostics import EpisodeRecorder
 
 from conftest import make_state

@@ -1,0 +1,129 @@
+"""Every adaptation of lerobot internals, in one place, checked against the installed version.
+
+lerobot 0.6.1 has no hook for a third-party post-processing stage in `lerobot-eval`, so this
+module (and only this module) reaches into it:
+- `wrapped_libero_env_factories`: wraps each LIBERO sub-env factory that
+  `lerobot.envs.libero.create_libero_envs` builds (for the `libero_physvla` env type);
+- `vector_env_class`: lerobot's own choice of Sync/AsyncVectorEnv;
+- `install_eval_hook`: replaces `lerobot.scripts.lerobot_eval.eval_main` with a version that
+  (1) turns a `libero` env config into `libero_physvla` (state export, same fields),
+  (2) appends `PhysVLACorrectorStep` to the policy postprocessor that `make_pre_post_processors`
+      returns (unless the checkpoint's own postprocessor already has one), and
+  (3) writes per-episode diagnostics beside eval_info.json.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import functools
+import logging
+from collections.abc import Callable
+
+SUPPORTED_LEROBOT = ("0.6.1",)
+
+
+class UnsupportedLerobot(RuntimeError):
+    pass
+
+
+def installed_lerobot_version() -> str:
+    from importlib.metadata import version
+
+    return version("lerobot")
+
+
+def check_lerobot_version(found: str | None = None) -> None:
+    """Raise UnsupportedLerobot (one line, naming the fix) unless lerobot is a supported version."""
+    found = installed_lerobot_version() if found is None else found
+    if found not in SUPPORTED_LEROBOT:
+        raise UnsupportedLerobot(
+            f"lerobot-physvla supports lerobot {', '.join(SUPPORTED_LEROBOT)}, found {found}: "
+            f"pip install 'lerobot[libero]=={SUPPORTED_LEROBOT[-1]}'"
+        )
+
+
+def vector_env_class(use_async: bool, n_envs: int):
+    from lerobot.envs.configs import _make_vec_env_cls
+
+    return _make_vec_env_cls(use_async, n_envs)
+
+
+@contextlib.contextmanager
+def wrapped_libero_env_factories(wrap: Callable):
+    """While active, every LIBERO sub-env factory lerobot builds returns `wrap(original_factory)`.
+
+    The wrapped factories are plain picklable partials, so they work in async worker processes.
+    """
+    from lerobot.envs import libero as lerobot_libero
+
+    original = lerobot_libero._make_env_fns
+
+    def make_env_fns(**kwargs):
+        return [functools.partial(wrap, fn) for fn in original(**kwargs)]
+
+    lerobot_libero._make_env_fns = make_env_fns
+    try:
+        yield
+    finally:
+        lerobot_libero._make_env_fns = original
+
+
+def as_physvla_env(env_cfg):
+    """A `libero` env config becomes `libero_physvla` with the same fields; others are returned as is."""
+    from lerobot.envs.configs import LiberoEnv
+
+    from lerobot_physvla.envs.libero_physvla import LiberoPhysVLAEnvConfig
+
+    if type(env_cfg) is LiberoEnv:
+        fields = {f.name: getattr(env_cfg, f.name) for f in dataclasses.fields(LiberoEnv) if f.init}
+        fields.pop("features", None)
+        fields.pop("features_map", None)
+        return LiberoPhysVLAEnvConfig(**fields)
+    return env_cfg
+
+
+def install_eval_hook(
+    make_step: Callable[[], object], on_done: Callable[[object, object], None], attach: Callable[[object], object]
+) -> None:
+    """Replace lerobot-eval's `eval_main` (see module docstring).
+
+    make_step() builds the PhysVLACorrectorStep to append; attach(step) adapts one the checkpoint
+    already has; on_done(cfg, step) runs after the evaluation with the parsed EvalPipelineConfig.
+    """
+    check_lerobot_version()
+    from lerobot.configs import parser
+    from lerobot.configs.eval import EvalPipelineConfig
+    from lerobot.scripts import lerobot_eval
+
+    from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep
+
+    inner = lerobot_eval.eval_main.__wrapped__  # the function under @parser.wrap()
+    original_factory = lerobot_eval.make_pre_post_processors
+
+    def eval_main(cfg):
+        cfg.env = as_physvla_env(cfg.env)
+        holder: dict[str, object] = {}
+
+        def make_pre_post_processors(*args, **kwargs):
+            pre, post = original_factory(*args, **kwargs)
+            step = next((s for s in post.steps if isinstance(s, PhysVLACorrectorStep)), None)
+            if step is None:
+                step = make_step()
+                post.steps.append(step)
+            else:
+                step = attach(step)
+            holder["step"] = step
+            logging.info("physvla: corrector appended to the policy postprocessor: %s", step.config)
+            return pre, post
+
+        lerobot_eval.make_pre_post_processors = make_pre_post_processors
+        try:
+            return inner(cfg)
+        finally:
+            lerobot_eval.make_pre_post_processors = original_factory
+            if "step" in holder:
+                on_done(cfg, holder["step"])
+
+    eval_main.__annotations__ = {"cfg": EvalPipelineConfig}  # draccus reads the real class
+    lerobot_eval.eval_main = parser.wrap()(eval_main)

@@ -1,0 +1,407 @@
+"""Branch B: the Euler-Lagrange gate (paper eq. 4-6, App. A) and its MuJoCo dynamics oracle.
+
+The residual is of the *proposed* motion (SPEC 1): the action's position channels give a
+Cartesian velocity v = a_pos * metres_per_unit / dt, mapped to joints with a damped
+least-squares pseudo-inverse of the translational Jacobian,
+    qdot_des = J^T (J J^T + lambda^2 I)^-1 v,   qddot = (qdot_des - qdot) / dt,
+    r_EL = M(q) qddot + C(q, qdot) qdot + G(q) - tau                      (eq. 4)
+Weights (eq. 5):  w = rho(|r_EL|) * softmax(1 / diag(M)),  rho(r) = clip((r - eps)/(r0 - eps), 0, 1).
+The work-energy residual of App. A,  qdot^T M qddot + 1/2 qdot^T Mdot qdot + qdot^T G - qdot^T tau,
+equals qdot . r_EL exactly, because qdot^T (Mdot - 2 C) qdot = 0 (skew symmetry), so it is
+computed from r_EL with no finite-differenced Mdot. It is logged, never gating.
+
+The oracle reads M via mj_fullM, the bias via qfrc_bias and tau via qfrc_actuator +
+qfrc_applied from a live MjData: no dynamics are re-implemented in Python.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+from numba import njit
+
+from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.state import field_offsets
+
+# numba caches a compiled function by its own file only: every cached kernel here calls njit
+# functions of this module alone, so editing this file invalidates all of them together.
+SOFT, GATED = 0, 1
+JOINT_DIAG, TASK_SPACE = 0, 1
+
+
+# ---------------------------------------------------------------- per-env arithmetic (numba)
+@njit(cache=True)
+def _sym3_inverse(a, inv):
+    """Inverse of a symmetric 3x3 matrix by cofactors; returns the determinant."""
+    c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+    c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+    c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+    det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
+    inv[0, 0] = c00 / det
+    inv[0, 1] = inv[1, 0] = c01 / det
+    inv[0, 2] = inv[2, 0] = c02 / det
+    inv[1, 1] = (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]) / det
+    inv[1, 2] = inv[2, 1] = (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]) / det
+    inv[2, 2] = (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]) / det
+    return det
+
+
+@njit(cache=True)
+def _j_times(J, X, a):
+    """a (3, 3) = J (3, n) @ X (n, 3)."""
+    for r in range(3):
+        for c in range(3):
+            acc = 0.0
+            for k in range(J.shape[1]):
+                acc += J[r, k] * X[k, c]
+            a[r, c] = acc
+
+
+@njit(cache=True)
+def qddot_row(J, qdot, v, dt, damping, out):
+    """qddot = (J^T (J J^T + lambda^2 I)^-1 v - qdot) / dt for one env; v in m/s, out (n,) rad/s^2."""
+    n = qdot.shape[0]
+    a = np.empty((3, 3))
+    inv = np.empty((3, 3))
+    _j_times(J, J.T, a)
+    for r in range(3):
+        a[r, r] += damping * damping
+    _sym3_inverse(a, inv)
+    y0 = inv[0, 0] * v[0] + inv[0, 1] * v[1] + inv[0, 2] * v[2]
+    y1 = inv[1, 0] * v[0] + inv[1, 1] * v[1] + inv[1, 2] * v[2]
+    y2 = inv[2, 0] * v[0] + inv[2, 1] * v[1] + inv[2, 2] * v[2]
+    for k in range(n):
+        out[k] = (J[0, k] * y0 + J[1, k] * y1 + J[2, k] * y2 - qdot[k]) / dt
+
+
+@njit(cache=True)
+def residual_row(M, qdd, bias, tau, out):
+    """r_EL = M qddot + bias - tau for one env, N m (eq. 4)."""
+    n = qdd.shape[0]
+    for r in range(n):
+        acc = bias[r] - tau[r]
+        for c in range(n):
+            acc += M[r, c] * qdd[c]
+        out[r] = acc
+
+
+@njit(cache=True)
+def rho(r, eps, r0):
+    """rho(r) = clip((r - eps) / (r0 - eps), 0, 1): the gate of eq. 5, r in N m."""
+    return min(max((r - eps) / (r0 - eps), 0.0), 1.0)
+
+
+@njit(cache=True)
+def softmax_inverse_row(x, out):
+    """softmax(1 / x) (eq. 5's weighting of inertias), numerically stable."""
+    m = -np.inf
+    for k in range(x.shape[0]):
+        m = max(m, 1.0 / x[k])
+    s = 0.0
+    for k in range(x.shape[0]):
+        out[k] = math.exp(1.0 / x[k] - m)
+        s += out[k]
+    for k in range(x.shape[0]):
+        out[k] /= s
+
+
+@njit(cache=True)
+def task_space_diag_row(M, J, out):
+    """diag(Lambda), Lambda = (J M^-1 J^T)^-1, the end-effector's translational inertia (kg).
+
+    Returns False (and leaves out untouched) if M is not positive definite.
+    """
+    n = M.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):  # Cholesky M = L L^T
+        s = M[j, j]
+        for k in range(j):
+            s -= L[j, k] * L[j, k]
+        if not s > 0.0:
+            return False
+        L[j, j] = math.sqrt(s)
+        for i in range(j + 1, n):
+            t = M[i, j]
+            for k in range(j):
+                t -= L[i, k] * L[j, k]
+            L[i, j] = t / L[j, j]
+    X = np.empty((n, 3))  # M^-1 J^T by two triangular solves
+    for c in range(3):
+        for i in range(n):
+            t = J[c, i]
+            for k in range(i):
+                t -= L[i, k] * X[k, c]
+            X[i, c] = t / L[i, i]
+        for i in range(n - 1, -1, -1):
+            t = X[i, c]
+            for k in range(i + 1, n):
+                t -= L[k, i] * X[k, c]
+            X[i, c] = t / L[i, i]
+    a = np.empty((3, 3))
+    inv = np.empty((3, 3))
+    _j_times(J, X, a)
+    det = _sym3_inverse(a, inv)
+    if not det > 0.0:
+        return False
+    for k in range(3):
+        out[k] = inv[k, k]
+    return True
+
+
+@njit(cache=True)
+def el_gate_row(a_raw, a_phys, row, o, n, pos, p, flags, a_out, w, diag):
+    """Branch B for one env reading its packed state row; returns False if M is not usable.
+
+    o: offsets [dt, qdot, M, bias, tau, J_pos] into row; p: [metres_per_unit, damping, eps, r0];
+    flags: [el_mode (SOFT/GATED), weighting (JOINT_DIAG/TASK_SPACE)];
+    diag (2,) receives [|r_EL| (N m), work-energy residual (W)].
+    """
+    dt = row[o[0]]
+    qdot = row[o[1] : o[1] + n]
+    M = row[o[2] : o[2] + n * n].reshape((n, n))
+    bias = row[o[3] : o[3] + n]
+    tau = row[o[4] : o[4] + n]
+    J = row[o[5] : o[5] + 3 * n].reshape((3, n))
+    v = np.empty(3)
+    for k in range(3):
+        v[k] = a_phys[pos[k]] * p[0] / dt  # action units -> m/s
+    qdd = np.empty(n)
+    r = np.empty(n)
+    qddot_row(J, qdot, v, dt, p[1], qdd)
+    residual_row(M, qdd, bias, tau, r)
+    rn = 0.0
+    power = 0.0
+    for k in range(n):
+        rn += r[k] * r[k]
+        power += qdot[k] * r[k]  # = qdot^T M qddot + 1/2 qdot^T Mdot qdot + qdot^T G - qdot^T tau
+    rn = math.sqrt(rn)
+    diag[0] = rn
+    diag[1] = abs(power)
+    g = rho(rn, p[2], p[3]) if flags[0] == GATED else 1.0  # eq. 5
+    for k in range(a_raw.shape[0]):
+        w[k] = 0.0
+        a_out[k] = a_phys[k]
+    if flags[1] == JOINT_DIAG:
+        d = np.empty(n)
+        for k in range(n):
+            d[k] = M[k, k]
+            if not d[k] > 0.0:
+                return False
+        softmax_inverse_row(d, w)
+        for k in range(n):
+            w[k] *= g
+            a_out[k] = w[k] * a_phys[k] + (1.0 - w[k]) * a_raw[k]  # eq. 6
+    else:
+        lam = np.empty(3)
+        if not task_space_diag_row(M, J, lam):
+            return False
+        ws = np.empty(3)
+        softmax_inverse_row(lam, ws)
+        for k in range(3):
+            w[pos[k]] = g * ws[k]
+            a_out[pos[k]] = w[pos[k]] * a_phys[pos[k]] + (1.0 - w[pos[k]]) * a_raw[pos[k]]
+    return True
+
+
+# ---------------------------------------------------------------- batched functions (B envs)
+@njit(cache=True)
+def proposed_qddot(J_pos, qdot, v_des, dt, damping):
+    """(B, n) joint accelerations implied by end-effector velocities v_des (B, 3) in m/s."""
+    out = np.empty_like(qdot)
+    for i in range(qdot.shape[0]):
+        qddot_row(J_pos[i], qdot[i], v_des[i], dt[i], damping, out[i])
+    return out
+
+
+@njit(cache=True)
+def el_residual(M, qddot, bias, tau):
+    """r_EL = M qddot + bias - tau, (B, n) in N m  (eq. 4)."""
+    out = np.empty_like(qddot)
+    for i in range(qddot.shape[0]):
+        residual_row(M[i], qddot[i], bias[i], tau[i], out[i])
+    return out
+
+
+def gate(r_norm: np.ndarray, eps: float, r0: float) -> np.ndarray:
+    """rho(r) for (B,) residual norms (eq. 5)."""
+    return np.array([rho(float(r), eps, r0) for r in np.atleast_1d(r_norm)])
+
+
+@njit(cache=True)
+def joint_diag_weights(M):
+    """softmax(1 / diag(M)) over the arm joints, (B, n)  (eq. 5)."""
+    b, n = M.shape[0], M.shape[1]
+    out = np.empty((b, n))
+    for i in range(b):
+        softmax_inverse_row(np.diag(M[i]).copy(), out[i])
+    return out
+
+
+@njit(cache=True)
+def task_space_weights(M, J_pos):
+    """softmax(1 / diag(Lambda)) over x, y, z with Lambda = (J M^-1 J^T)^-1, (B, 3).
+
+    As in the paper's joint weighting, the axis with the smaller effective mass gets the larger weight.
+    """
+    out = np.empty((M.shape[0], 3))
+    lam = np.empty(3)
+    for i in range(M.shape[0]):
+        task_space_diag_row(M[i], J_pos[i], lam)
+        softmax_inverse_row(lam, out[i])
+    return out
+
+
+@njit(cache=True)
+def el_gate(a_raw, a_phys, flat, o, n, pos, p, flags, status, singular):
+    """Branch B over B envs; runs where status == 0, sets status = singular where M is unusable.
+
+    Returns (a_B (B, A), weights (B, A), diag (B, 2) [|r_EL| N m, r_energy W]).
+    """
+    b = a_raw.shape[0]
+    out = a_phys.copy()
+    w = np.zeros_like(a_raw)
+    diag = np.full((b, 2), np.nan)
+    for i in range(b):
+        if status[i] == 0:
+            if not el_gate_row(a_raw[i], a_phys[i], flat[i], o, n, pos, p, flags, out[i], w[i], diag[i]):
+                status[i] = singular
+    return out, w, diag
+
+
+class ELGate:
+    """Branch B: blends Branch A's candidate with the raw action, weighted by inertia and residual.
+
+    Attributes:
+        cfg: corrector configuration (el_mode, weighting, eps_nm, r0_nm, dls_damping).
+    """
+
+    def __init__(self, cfg: PhysVLAConfig):
+        self.cfg = cfg
+        self.layout = cfg.action_layout
+        self.pos = self.layout.pos_index
+        self.params = np.array([self.layout.metres_per_unit, cfg.dls_damping, cfg.eps_nm, cfg.r0_nm])
+        self.flags = np.array(
+            [GATED if cfg.el_mode == "gated" else SOFT, TASK_SPACE if cfg.weighting == "task_space" else JOINT_DIAG],
+            dtype=np.int64,
+        )
+        self._offsets: dict[int, np.ndarray] = {}
+
+    def offsets(self, n: int) -> np.ndarray:
+        if n not in self._offsets:
+            f = field_offsets(n)
+            self._offsets[n] = np.array([f[k] for k in ("dt", "qdot", "M", "bias", "tau", "J_pos")], dtype=np.int64)
+        return self._offsets[n]
+
+    def check_arm(self, n: int) -> None:
+        if self.cfg.weighting == "joint_diag" and n != self.layout.dim:
+            raise ValueError(
+                f"physvla: weighting='joint_diag' applies {n} joint weights to {self.layout.dim} "
+                "action entries; use weighting='task_space' for this arm/layout"
+            )
+
+    def residual(self, a_pos_units: np.ndarray, state) -> tuple[np.ndarray, np.ndarray]:
+        """r_EL (B, n) in N m and qddot (B, n) of the motion proposed by the position channels."""
+        v_des = a_pos_units * (self.layout.metres_per_unit / state.dt[:, None])  # m/s
+        qddot = proposed_qddot(state.J_pos, state.qdot, v_des, state.dt, self.cfg.dls_damping)
+        return el_residual(state.M, qddot, state.bias, state.tau), qddot
+
+    def __call__(self, a_raw: np.ndarray, a_phys: np.ndarray, state):
+        """(a_B, |r_EL| (B,) N m, r_energy (B,) W, weights (B, A), ok (B,) False where M is unusable)."""
+        n = state.n_joints
+        self.check_arm(n)
+        status = np.zeros(a_raw.shape[0], np.int8)
+        a, w, diag = el_gate(a_raw, a_phys, state.pack(), self.offsets(n), n, self.pos, self.params, self.flags, status, 1)
+        return a, diag[:, 0], diag[:, 1], w, status == 0
+
+
+class MujocoDynamicsOracle:
+    """Reads q, qdot, M (arm block), bias, tau and the end-effector Jacobian from a live MjData.
+
+    Attributes:
+        model: the MjModel.
+        dof_ids: (n,) dof (qvel) addresses of the arm joints.
+        qpos_ids: (n,) qpos addresses of the arm joints.
+        site_id: the end-effector site, or body_id if the end-effector is a body.
+        include_constraint: add qfrc_constraint to tau (arms driven by a mocap weld, e.g. Fetch,
+            have no arm actuators; note it then also holds contact forces on the arm).
+    """
+
+    def __init__(self, model: mujoco.MjModel, joint_names: list[str], eef_site: str | None = None,
+                 eef_body: str | None = None, include_constraint: bool = False):
+        self.model = model
+        self.include_constraint = include_constraint
+        ids = []
+        for name in joint_names:
+            jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+            if jid < 0:
+                names = [model.joint(i).name for i in range(model.njnt)]
+                raise ValueError(f"physvla: joint {name!r} not in the model; joints are: {names}")
+            ids.append(jid)
+        self.dof_ids = np.array([model.jnt_dofadr[j] for j in ids], dtype=np.intp)
+        self.qpos_ids = np.array([model.jnt_qposadr[j] for j in ids], dtype=np.intp)
+        self.site_id = self.body_id = -1
+        if eef_site is not None:
+            self.site_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, eef_site)
+            if self.site_id < 0:
+                names = [model.site(i).name for i in range(model.nsite)]
+                raise ValueError(f"physvla: end-effector site {eef_site!r} not in the model; sites are: {names}")
+        elif eef_body is not None:
+            self.body_id = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, eef_body)
+            if self.body_id < 0:
+                names = [model.body(i).name for i in range(model.nbody)]
+                raise ValueError(f"physvla: end-effector body {eef_body!r} not in the model; bodies are: {names}")
+        else:
+            raise ValueError("physvla: give eef_site or eef_body")
+        self._scratch = mujoco.MjData(model)
+        self._full_m = np.zeros((model.nv, model.nv))
+        self._jacp = np.zeros((3, model.nv))
+        self._bias = np.zeros(model.nv)
+        self._block = np.ix_(self.dof_ids, self.dof_ids)
+
+    @property
+    def n_joints(self) -> int:
+        return len(self.dof_ids)
+
+    def eef_pos(self, data: mujoco.MjData | None = None) -> np.ndarray:
+        """End-effector position, m; from the scratch data of the last read() if data is None."""
+        data = self._scratch if data is None else data
+        return (data.site_xpos[self.site_id] if self.site_id >= 0 else data.xpos[self.body_id]).copy()
+
+    def read(self, data: mujoco.MjData) -> dict[str, np.ndarray]:
+        """q, qdot, M, bias, tau, J_pos of the arm at data's current state.
+
+        The live `data` is never written: qpos/qvel are copied into a scratch MjData where only
+        what the corrector needs is recomputed (kinematics, composite inertia, RNE bias; no
+        collision detection, ~5x cheaper than mj_forward), so reading cannot perturb the
+        simulation. tau is the live qfrc_actuator + qfrc_applied: the torques being applied.
+        """
+        m, s = self.model, self._scratch
+        s.qpos[:] = data.qpos
+        s.qvel[:] = data.qvel
+        s.mocap_pos[:] = data.mocap_pos
+        s.mocap_quat[:] = data.mocap_quat
+        mujoco.mj_kinematics(m, s)
+        mujoco.mj_comPos(m, s)
+        mujoco.mj_makeM(m, s)  # qM: composite rigid body inertia + armature
+        mujoco.mj_comVel(m, s)
+        mujoco.mj_rne(m, s, 0, self._bias)  # C(q, qdot) qdot + G(q)
+        tau = data.qfrc_actuator[self.dof_ids] + data.qfrc_applied[self.dof_ids]
+        if self.include_constraint:  # mocap-driven arms (Fetch): the weld constraint moves the arm
+            tau = tau + data.qfrc_constraint[self.dof_ids]
+        data = s
+        mujoco.mj_fullM(m, self._full_m, data.qM)  # mujoco 3.3.7 signature
+        if self.site_id >= 0:
+            mujoco.mj_jacSite(m, data, self._jacp, None, self.site_id)
+        else:
+            mujoco.mj_jacBody(m, data, self._jacp, None, self.body_id)
+        d = self.dof_ids
+        return {
+            "q": data.qpos[self.qpos_ids].copy(),
+            "qdot": data.qvel[d].copy(),
+            "M": self._full_m[self._block],
+            "bias": self._bias[d].copy(),
+            "tau": tau,
+            "J_pos": self._jacp[:, d].copy(),
+        }

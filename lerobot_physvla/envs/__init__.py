@@ -1,0 +1,1 @@
+"""LeRobot env types (like `lerobot/envs`): `libero_physvla`."""

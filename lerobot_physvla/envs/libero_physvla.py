@@ -1,0 +1,161 @@
+"""Env type `libero_physvla`: lerobot's LIBERO env plus the physical-state export, optionally camera-free.
+
+    lerobot-eval --env.type=libero_physvla --env.task=libero_spatial [--env.cameras=false] ...
+
+Each sub-env (in the main process or an async worker) is lerobot's own `LiberoEnv` inside
+`PhysVLAStateExport`, a gym.Wrapper that adds to every observation
+    robot_state["physvla_state"]  the packed PhysState of this env (see state.py)
+    robot_state["physvla_extra"]  [task_id, is_success, the action executed last step (7)]
+and, with cameras=false, builds LIBERO without its offscreen renderer (~10 ms a step here instead
+of ~600 ms), returns no pixels, and adds `environment_state` = [object xyz, target xyz] so
+state-based policies have the scene. The env processors put `PhysVLAStateCaptureStep` first.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from lerobot.configs.types import FeatureType, PolicyFeature
+from lerobot.envs.configs import EnvConfig
+from lerobot.envs.configs import LiberoEnv as LiberoEnvConfig
+from lerobot.processor import PolicyProcessorPipeline
+from lerobot.processor.env_processor import LiberoProcessorStep
+from lerobot.utils.constants import OBS_ENV_STATE, OBS_IMAGES
+
+from lerobot_physvla import compat as compat
+from lerobot_physvla.processor.physvla_processor import EXTRA_KEY, STATE_KEY, PhysVLAStateCaptureStep
+from lerobot_physvla.core.state import field_offsets, packed_size
+
+N_JOINTS = 7  # the Panda of LIBERO
+ENV_STATE_DIM = 6  # object xyz, target xyz
+_BLANK_FRAME = np.zeros((64, 64, 3), np.uint8)  # what render() shows with cameras off
+_OBJ, _TGT = field_offsets(N_JOINTS)["obj_pos"], field_offsets(N_JOINTS)["target_pos"]
+
+
+class PhysVLAStateExport(gym.Wrapper):
+    """Adds the physical state of one LIBERO sub-env to its observations (see module docstring).
+
+    Attributes:
+        cameras: False builds LIBERO with no renderer and returns no pixels.
+        task_id: the LIBERO task id (exported in physvla_extra).
+    """
+
+    def __init__(self, env, cameras: bool = True):
+        super().__init__(env)
+        self.cameras = cameras
+        self.source = None
+        self._last_action = np.zeros(7)
+        inner = env.unwrapped
+        self.task_id = int(getattr(inner, "task_id", -1))
+        obs_space = dict(env.observation_space.spaces)
+        if not cameras:
+            obs_space.pop("pixels", None)
+            inner.camera_name = []  # LiberoEnv._format_raw_obs then reads no camera
+            obs_space["environment_state"] = spaces.Box(-np.inf, np.inf, (ENV_STATE_DIM,), np.float64)
+        rs = dict(obs_space["robot_state"].spaces) if "robot_state" in obs_space else {}
+        rs[STATE_KEY] = spaces.Box(-np.inf, np.inf, (packed_size(N_JOINTS),), np.float64)
+        rs[EXTRA_KEY] = spaces.Box(-np.inf, np.inf, (2 + 7,), np.float64)
+        obs_space["robot_state"] = spaces.Dict(rs)
+        self.observation_space = spaces.Dict(obs_space)
+
+    def _build_without_renderer(self) -> None:
+        inner = self.env.unwrapped
+        if inner._env is not None:
+            return
+        from libero.libero.envs.env_wrapper import ControlEnv
+
+        env = ControlEnv(
+            bddl_file_name=inner._task_bddl_file, has_renderer=False, has_offscreen_renderer=False,
+            use_camera_obs=False, control_freq=inner.control_freq, hard_reset=inner.hard_reset,
+        )
+        env.reset()
+        inner._env = env
+
+    def _augment(self, obs: dict, success: bool) -> dict:
+        obs = dict(obs)
+        if not self.cameras:
+            obs.pop("pixels", None)
+        row = self.source.read_packed() if self.source is not None else np.zeros(packed_size(N_JOINTS))
+        rs = dict(obs.get("robot_state", {}))
+        rs[STATE_KEY] = row
+        rs[EXTRA_KEY] = np.concatenate([[self.task_id, float(success)], self._last_action])
+        obs["robot_state"] = rs
+        if not self.cameras:  # object xyz, target xyz
+            obs["environment_state"] = np.concatenate([row[_OBJ : _OBJ + 3], row[_TGT : _TGT + 3]])
+        return obs
+
+    def reset(self, **kwargs):
+        from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+
+        if not self.cameras:
+            self._build_without_renderer()
+        obs, info = self.env.reset(**kwargs)
+        try:  # a hard reset rebuilds LIBERO's model: read it afresh
+            self.source = RobosuiteStateSource(self.env.unwrapped._env.env)
+            self.source.reset()
+        except Exception as e:  # noqa: BLE001 - do-no-harm: no state -> the corrector passes through
+            self.source = None
+            info = {**info, "physvla_state_error": repr(e)}
+        self._last_action = np.zeros(7)
+        return self._augment(obs, False), info
+
+    def step(self, action):
+        self._last_action = np.asarray(action, dtype=np.float64).copy()
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if self.source is not None:
+            self.source.step()
+        return self._augment(obs, bool(info.get("is_success", False))), reward, terminated, truncated, info
+
+    def render(self):
+        return self.env.render() if self.cameras else _BLANK_FRAME
+
+
+def _wrapped(make_env, cameras: bool):
+    return PhysVLAStateExport(make_env(), cameras=cameras)
+
+
+@EnvConfig.register_subclass("libero_physvla")
+@dataclass
+class LiberoPhysVLAEnvConfig(LiberoEnvConfig):
+    """lerobot's `libero` env config plus the PhysVLA state export.
+
+    Attributes:
+        cameras: render LIBERO's cameras (as `libero`); false gives a state-only env whose
+            observations are robot_state + environment_state (object and target xyz).
+    """
+
+    cameras: bool = True
+
+    def __post_init__(self):
+        super().__post_init__()
+        if not self.cameras:
+            for key in list(self.features):
+                if self.features[key].type == FeatureType.VISUAL:
+                    del self.features[key]
+            self.features["environment_state"] = PolicyFeature(type=FeatureType.ENV, shape=(ENV_STATE_DIM,))
+            self.features_map["environment_state"] = OBS_ENV_STATE
+            self.features_map = {k: v for k, v in self.features_map.items() if not v.startswith(OBS_IMAGES)}
+
+    def create_envs(self, n_envs: int, use_async_envs: bool = False):
+        from lerobot.envs.libero import create_libero_envs
+
+        if self.task is None:
+            raise ValueError("libero_physvla requires --env.task (e.g. libero_spatial)")
+        with compat.wrapped_libero_env_factories(partial(_wrapped, cameras=self.cameras)):
+            return create_libero_envs(
+                task=self.task, n_envs=n_envs, camera_name=self.camera_name, init_states=self.init_states,
+                gym_kwargs=self.gym_kwargs, env_cls=compat.vector_env_class(use_async_envs, n_envs),
+                control_mode=self.control_mode, episode_length=self.episode_length,
+                camera_name_mapping=self.camera_name_mapping, is_libero_plus=self.is_libero_plus,
+            )
+
+    def get_env_processors(self):
+        return (
+            PolicyProcessorPipeline(steps=[PhysVLAStateCaptureStep(), LiberoProcessorStep()]),
+            PolicyProcessorPipeline(steps=[]),
+        )

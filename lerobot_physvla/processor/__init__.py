@@ -1,0 +1,1 @@
+"""LeRobot processor steps (like `lerobot/processor`): state capture and the corrector step."""

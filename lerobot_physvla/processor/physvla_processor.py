@@ -1,0 +1,222 @@
+"""LeRobot processor steps: capture the physical state (pre), correct the action (post).
+
+`lerobot-eval` hands the policy postprocessor the action alone, so the physical state travels
+another way: the env (see `lerobot_envs.py`) exports a packed state vector in its observation
+(`robot_state["physvla_state"]`, (B, L) once vectorised, also from async worker processes);
+`PhysVLAStateCaptureStep`, first in the env preprocessor, pops it and publishes it on a named
+in-process `StateBus`; `PhysVLACorrectorStep`, last in the policy postprocessor, reads the bus and
+corrects the action. Episode boundaries are detected from the state's own `episode_step`
+counter (0 right after a reset), per env, because lerobot-eval never calls `reset()`.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from lerobot.configs import PipelineFeatureType, PolicyFeature
+from lerobot.lerobot_types import EnvTransition, TransitionKey
+from lerobot.processor.pipeline import ProcessorStep, ProcessorStepRegistry
+from lerobot.utils.constants import OBS_PREFIX
+
+from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.core.state import PhysState
+
+STATE_KEY = "physvla_state"  # inside robot_state: the packed PhysState row (L,)
+EXTRA_KEY = "physvla_extra"  # inside robot_state: [task_id, is_success, last executed action (A)]
+ROBOT_STATE = f"{OBS_PREFIX}robot_state"
+FLAT_STATE = f"{OBS_PREFIX}{STATE_KEY}"  # top-level alternative (datasets, robots)
+
+
+@dataclass
+class StateBus:
+    """Latest physical state of B envs, handed from the capture step to the corrector step.
+
+    Attributes:
+        state: (B, L) packed states, or None before the first observation.
+        extra: (B, E) extras exported by the env (task id, success, executed action) or None.
+        seq: incremented at every publish.
+    """
+
+    state: np.ndarray | None = None
+    extra: np.ndarray | None = None
+    seq: int = 0
+
+    def publish(self, state: np.ndarray, extra: np.ndarray | None = None) -> None:
+        self.state, self.extra = state, extra
+        self.seq += 1
+
+
+_BUSES: dict[str, StateBus] = {}
+
+
+def get_bus(name: str = "default") -> StateBus:
+    """The process-wide bus of that name (capture and corrector steps meet on it)."""
+    return _BUSES.setdefault(name, StateBus())
+
+
+def _to_numpy(x) -> np.ndarray:
+    if isinstance(x, torch.Tensor):
+        x = x.detach().to("cpu")
+        return x.double().numpy() if x.dtype != torch.float64 else x.numpy()
+    return np.asarray(x, dtype=np.float64)
+
+
+def _unregister_name_for_saving(cls):
+    """Keep the step in ProcessorStepRegistry (configs naming it load once the plugin is imported)
+    but make `save_pretrained` write its `"class"` path, so a saved pipeline loads in an
+    interpreter that never imported lerobot_physvla (the module is imported by that path)."""
+    del cls._registry_name
+    return cls
+
+
+@_unregister_name_for_saving
+@ProcessorStepRegistry.register("physvla_state_capture")
+@dataclass
+class PhysVLAStateCaptureStep(ProcessorStep):
+    """Takes the env-exported physical state out of the observation and publishes it.
+
+    Put it first in the env preprocessor (the `libero_physvla` env type does). It removes
+    `observation.robot_state["physvla_state"]` (and `physvla_extra`), or a top-level
+    `observation.physvla_state`, so the policy never sees them.
+
+    Attributes:
+        bus: name of the StateBus to publish on.
+    """
+
+    bus: str = "default"
+
+    def __call__(self, transition: EnvTransition) -> EnvTransition:
+        obs = transition.get(TransitionKey.OBSERVATION)
+        if not obs:
+            return transition
+        state = extra = None
+        obs = dict(obs)
+        rs = obs.get(ROBOT_STATE)
+        if isinstance(rs, dict) and STATE_KEY in rs:
+            rs = dict(rs)
+            state = rs.pop(STATE_KEY)
+            extra = rs.pop(EXTRA_KEY, None)
+            if rs:
+                obs[ROBOT_STATE] = rs
+            else:
+                obs.pop(ROBOT_STATE)
+        elif FLAT_STATE in obs:
+            state = obs.pop(FLAT_STATE)
+        if state is None:
+            return transition
+        state = _to_numpy(state)
+        get_bus(self.bus).publish(state[None] if state.ndim == 1 else state,
+                                  None if extra is None else np.atleast_2d(_to_numpy(extra)))
+        new = dict(transition)
+        new[TransitionKey.OBSERVATION] = obs
+        return new
+
+    def get_config(self) -> dict[str, Any]:
+        return {"bus": self.bus}
+
+    def transform_features(
+        self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]
+    ) -> dict[PipelineFeatureType, dict[str, PolicyFeature]]:
+        out = {k: dict(v) for k, v in features.items()}
+        for feats in out.values():
+            feats.pop(FLAT_STATE, None)
+        return out
+
+
+@_unregister_name_for_saving
+@ProcessorStepRegistry.register("physvla_corrector")
+@dataclass
+class PhysVLACorrectorStep(ProcessorStep):
+    """Corrects the action tensor with the PhysVLA corrector, using the state on the bus.
+
+    Put it last in the policy postprocessor (after unnormalisation: it works in env units).
+    Accepts (B, A) and (B, T, A) actions on any device and returns the same shape, dtype and
+    device. Do-no-harm: with no state on the bus, or a state whose batch does not match, the
+    action passes through unchanged and the reason is counted in `passthrough_counts`.
+
+    Attributes:
+        config: PhysVLAConfig fields (mode and every hyperparameter), JSON-serialisable.
+        bus: name of the StateBus to read.
+    """
+
+    config: dict[str, Any] = field(default_factory=lambda: PhysVLAConfig().to_dict())
+    bus: str = "default"
+    passthrough_counts: Counter = field(default_factory=Counter, init=False, repr=False)
+    listeners: list = field(default_factory=list, init=False, repr=False)
+    _corrector: Corrector | None = field(default=None, init=False, repr=False)
+    _last_step: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.cfg = PhysVLAConfig.from_dict(self.config)  # validates: unknown mode -> ValueError
+        self.config = self.cfg.to_dict()
+
+    @property
+    def corrector(self) -> Corrector | None:
+        return self._corrector
+
+    def _pass(self, why: str, fix: str) -> None:
+        self.passthrough_counts[why] += 1
+        if self.passthrough_counts[why] == 1:
+            warnings.warn(f"physvla: passing actions through unchanged ({why}): {fix}", RuntimeWarning, stacklevel=3)
+
+    def __call__(self, transition: EnvTransition) -> EnvTransition:
+        action = transition.get(TransitionKey.ACTION)
+        if not isinstance(action, torch.Tensor):
+            return transition
+        bus = get_bus(self.bus)
+        if bus.state is None:
+            self._pass("no_state", "no physical state reached the postprocessor; evaluate with "
+                       "--env.type=libero_physvla (or --policy.postprocess=physvla), or feed "
+                       "observation.physvla_state")
+            return transition
+        state = PhysState.unpack(bus.state)
+        b = action.shape[0]
+        if state.batch_size != b:
+            self._pass("state_batch_mismatch", f"state for {state.batch_size} envs, action for {b}")
+            return transition
+        if self._corrector is None or self._corrector.batch_size != b:
+            self._corrector = Corrector(self.cfg, b)
+            self._last_step = None
+        # Episode boundaries: an env whose step counter went back (to 0 at reset) starts afresh.
+        step = state.episode_step.copy()
+        if self._last_step is not None:
+            new_ep = step < self._last_step
+            if new_ep.any():
+                self._corrector.reset(np.flatnonzero(new_ep))
+        else:
+            self._corrector.reset()
+        self._last_step = step
+
+        t0 = time.perf_counter()
+        raw = _to_numpy(action)
+        out = self._corrector(raw, state)
+        corrected = torch.from_numpy(out).to(device=action.device, dtype=action.dtype)
+        t_total = time.perf_counter() - t0
+        for listener in self.listeners:
+            listener(raw, out, state, bus.extra, self._corrector.last, t_total)
+        new = dict(transition)
+        new[TransitionKey.ACTION] = corrected
+        return new
+
+    def get_config(self) -> dict[str, Any]:
+        return {"config": self.config, "bus": self.bus}
+
+    def reset(self) -> None:
+        """Forget all per-env memory (the next call starts every env's episode afresh)."""
+        if self._corrector is not None:
+            self._corrector.reset()
+        self._last_step = None
+
+    def transform_features(
+        self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]
+    ) -> dict[PipelineFeatureType, dict[str, PolicyFeature]]:
+        return features
+

@@ -1,0 +1,80 @@
+"""`lerobot-physvla-config`: add the corrector to a policy checkpoint's postprocessor.
+
+    lerobot-physvla-config POLICY_DIR [--mode phys_el] [--physvla.<field>=<value> ...]
+    lerobot-physvla-config --write-presets policies/physvla_configs
+
+Loads POLICY_DIR/policy_postprocessor.json with lerobot's own PolicyProcessorPipeline, appends
+(or replaces) the PhysVLACorrectorStep, and saves it back with `save_pretrained`: the entry is
+written in the `"class"` form, so any interpreter loading it imports lerobot_physvla by itself.
+The directory can then be pushed to the hub like any checkpoint.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from lerobot_physvla.core.config import MODES, PhysVLAConfig
+
+POSTPROCESSOR = "policy_postprocessor.json"
+
+
+def add_corrector(policy_dir: str | Path, cfg: PhysVLAConfig) -> Path:
+    """Append the corrector to POLICY_DIR's postprocessor (creating one if it has none)."""
+    from lerobot.processor import PolicyProcessorPipeline
+    from lerobot.processor.converters import policy_action_to_transition, transition_to_policy_action
+
+    from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep
+
+    d = Path(policy_dir)
+    if (d / POSTPROCESSOR).is_file():
+        post = PolicyProcessorPipeline.from_pretrained(
+            d, config_filename=POSTPROCESSOR, to_transition=policy_action_to_transition,
+            to_output=transition_to_policy_action,
+        )
+        post.steps = [s for s in post.steps if not isinstance(s, PhysVLACorrectorStep)]
+    else:
+        d.mkdir(parents=True, exist_ok=True)
+        post = PolicyProcessorPipeline(
+            steps=[], name="policy_postprocessor", to_transition=policy_action_to_transition,
+            to_output=transition_to_policy_action,
+        )
+    post.steps.append(PhysVLACorrectorStep(config=cfg.to_dict()))
+    post.save_pretrained(d, config_filename=POSTPROCESSOR)
+    return d / POSTPROCESSOR
+
+
+def main(argv: list[str] | None = None) -> None:
+    from lerobot_physvla.plugin import FlagError, build_config, split_argv
+
+    argv = sys.argv[1:] if argv is None else argv
+    try:
+        _, overrides, rest = split_argv(argv)
+    except FlagError as e:
+        print(f"lerobot-physvla-config: error: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
+    ap = argparse.ArgumentParser(prog="lerobot-physvla-config", description=__doc__.split("\n\n")[0])
+    ap.add_argument("policy_dir", nargs="?", help="a local policy checkpoint directory")
+    ap.add_argument("--mode", choices=MODES, default=None, help="shorthand for --physvla.mode")
+    ap.add_argument("--write-presets", metavar="DIR", help="write one postprocessor per paper mode into DIR/<mode>/")
+    args = ap.parse_args(rest)
+    if args.mode:
+        overrides["mode"] = args.mode
+    try:
+        cfg = build_config(overrides)
+    except FlagError as e:
+        print(f"lerobot-physvla-config: error: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
+    if args.write_presets:
+        for mode in MODES:
+            path = add_corrector(Path(args.write_presets) / mode, cfg.replace(mode=mode))
+            print(f"wrote {path}")
+    elif args.policy_dir:
+        print(f"wrote {add_corrector(args.policy_dir, cfg)}")
+    else:
+        ap.error("give a POLICY_DIR or --write-presets DIR")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,122 @@
+"""Episode-level adapters over the simulators the project evaluates on (no LeRobot import).
+
+A `Scene` is one env with its state source, seen the same way by every simulator: `reset(seed)`
+starts a seeded, reproducible episode; `read()` gives the corrector's `PhysState` (B = 1);
+`step(action)` executes one action in the env's own layout and returns (success now, reward).
+The harness (eval/harness.py), the dataset recorder (policies/record_dataset.py) and the tests
+drive LIBERO, robosuite Lift and gymnasium-robotics Fetch through it.
+
+Scenes by name (`make_scene`):
+    libero_spatial/<task id>   LIBERO-Spatial task, state-only (lerobot's 280-step horizon)
+    lift, lift_plate           robosuite Lift, and Lift + place-on-plate (lift_sim.py)
+    fetch_pick_place           gymnasium-robotics FetchPickAndPlace-v4 (fetch_sim.py)
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from lerobot_physvla.core.config import LIBERO_OSC_POSE, ActionLayout
+from lerobot_physvla.core.state import PhysState
+
+
+class Scene(Protocol):
+    """What the harness needs of one simulator.
+
+    Attributes:
+        name: scene name (as given to make_scene).
+        layout: the env's action layout.
+        horizon: control steps per episode.
+        stop_on_success: end the episode at the first step that succeeds (LIBERO, lerobot-eval's
+            convention); False runs the whole horizon and scores success at the end.
+        expert: ExpertConfig fields (geometry, gains) that fit this scene's objects.
+    """
+
+    name: str
+    layout: ActionLayout
+    horizon: int
+    stop_on_success: bool
+    expert: dict
+
+    def reset(self, seed: int) -> None: ...
+
+    def read(self) -> PhysState: ...
+
+    def step(self, action: np.ndarray) -> tuple[bool, float]: ...
+
+
+class LiberoScene:
+    """One LIBERO task, state-only: init state `seed % 50`, env seeded with `seed`."""
+
+    layout = LIBERO_OSC_POSE
+    horizon = 280  # lerobot's LIBERO-Spatial episode length
+    stop_on_success = True
+    expert: dict = {}
+
+    def __init__(self, suite: str = "libero_spatial", task_id: int = 0):
+        from lerobot_physvla.sim import libero_sim
+
+        self.name = f"{suite}/{task_id}"
+        self.task = libero_sim.load_task(suite, task_id)
+        self.env = libero_sim.make_libero_env(self.task)
+        self.source = None
+        self.raw_obs: dict = {}
+
+    def reset(self, seed: int) -> None:
+        from lerobot_physvla.sim import libero_sim
+        from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+
+        self.raw_obs = libero_sim.reset_to_init_state(self.env, self.task, seed)
+        if self.source is None:
+            self.source = RobosuiteStateSource(self.env.env)
+        self.source.reset()
+
+    def read(self) -> PhysState:
+        return self.source.read()
+
+    def step(self, action: np.ndarray) -> tuple[bool, float]:
+        self.raw_obs, reward, _, _ = self.env.step(np.asarray(action, dtype=np.float64))
+        self.source.step()
+        return bool(self.env.check_success()), float(reward)
+
+    def policy_observation(self, state: PhysState) -> dict[str, np.ndarray]:
+        """The observation a state-based LeRobot policy sees in `lerobot-eval --env.type=libero_physvla
+        --env.cameras=false`: observation.state = eef xyz, eef axis-angle, finger qpos (8, as
+        lerobot's LiberoProcessorStep builds it) and observation.environment_state = object xyz,
+        target xyz (6), float32."""
+        o = self.raw_obs
+        robot = np.concatenate([o["robot0_eef_pos"], quat_to_axis_angle(o["robot0_eef_quat"]), o["robot0_gripper_qpos"]])
+        env_state = np.concatenate([state.obj_pos[0], state.target_pos[0]])
+        return {"observation.state": robot.astype(np.float32), "observation.environment_state": env_state.astype(np.float32)}
+
+
+def quat_to_axis_angle(quat_xyzw: np.ndarray) -> np.ndarray:
+    """Axis-angle (rad) of an (x, y, z, w) quaternion, as lerobot's LiberoProcessorStep computes it."""
+    q = np.asarray(quat_xyzw, dtype=np.float32)
+    w = np.clip(q[3], -1.0, 1.0)
+    den = np.sqrt(max(1.0 - w * w, 0.0))
+    if den <= 1e-10:
+        return np.zeros(3, np.float32)
+    return (q[:3] / den * 2.0 * np.arccos(w)).astype(np.float32)
+
+
+def make_scene(name: str) -> Scene:
+    """Build a scene by name (see the module docstring); clear error for an unknown one."""
+    if name.startswith("libero_"):
+        suite, _, task = name.partition("/")
+        if not task.isdigit():
+            raise ValueError(f"physvla: LIBERO scenes are named <suite>/<task id>, e.g. libero_spatial/0; got {name!r}")
+        return LiberoScene(suite, int(task))
+    if name in ("lift", "lift_plate"):
+        from lerobot_physvla.sim.lift_sim import LiftScene
+
+        return LiftScene(plate=name == "lift_plate")
+    if name == "fetch_pick_place":
+        from lerobot_physvla.sim.fetch_sim import FetchScene
+
+        return FetchScene()
+    raise ValueError(
+        f"physvla: unknown scene {name!r}; choose libero_spatial/<0-9>, lift, lift_plate or fetch_pick_place"
+    )

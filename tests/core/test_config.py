@@ -1,0 +1,39 @@
+import pytest
+
+from lerobot_physvla.core.config import FETCH_4D, LIBERO_OSC_POSE, ActionLayout, PhysVLAConfig
+
+
+def test_defaults_are_the_papers():
+    c = PhysVLAConfig()
+    assert (c.cap, c.delta_grasp_m, c.beta, c.lift_bias_m, c.alpha_transport, c.d_thresh_m) == (
+        0.05, 0.06, 0.5, 0.02, 0.92, 0.08
+    )
+    assert c.h_lift_m == 0.02 and c.eps_nm == 0.05 and c.alpha_temporal == 0.85
+    assert c.action_layout is LIBERO_OSC_POSE
+
+
+@pytest.mark.parametrize(
+    "field,value",
+    [("mode", "turbo"), ("el_mode", "hard"), ("weighting", "cartesian"), ("gripper_rule", "x"),
+     ("chunk", "last"), ("layout", "ur5"), ("cap", 1.5), ("beta", -0.1), ("d_thresh_m", 0.0)],
+)
+def test_bad_values_are_rejected_with_the_choices(field, value):
+    with pytest.raises(ValueError, match=field):
+        PhysVLAConfig(**{field: value})
+
+
+def test_dict_round_trip_with_custom_layout():
+    lay = ActionLayout(dim=5, pos=(1, 2, 3), gripper=0, metres_per_unit=0.1, gripper_open=1.0)
+    c = PhysVLAConfig(mode="phys", layout=lay, grasp_offset_m=(0.0, 0.01, 0.02))
+    back = PhysVLAConfig.from_dict(c.to_dict())
+    assert back == c and back.action_layout == lay
+    with pytest.raises(ValueError, match="unknown config keys"):
+        PhysVLAConfig.from_dict({"mdoe": "phys"})
+
+
+def test_layout_validation():
+    assert FETCH_4D.gripper == 3 and FETCH_4D.gripper_open == 1.0
+    with pytest.raises(ValueError):
+        ActionLayout(dim=3, pos=(0, 1, 3))
+    with pytest.raises(ValueError):
+        ActionLayout(dim=4, pos=(0, 1, 2), gripper=2)

@@ -1,0 +1,191 @@
+"""The corrector: modes, blender, batching, chunks, per-env memory and the do-no-harm contract."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st_
+
+from lerobot_physvla.core.config import MODES, PhysVLAConfig
+from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.core.phase import Phase
+
+from conftest import make_state
+
+RAW = np.array([[0.4, -0.2, 0.1, 0.3, 0.0, -0.3, 1.0]])
+
+
+def test_baseline_is_identity():
+    c = Corrector(PhysVLAConfig(mode="baseline"))
+    out = c(RAW, make_state())
+    np.testing.assert_array_equal(out, RAW)
+
+
+def test_phys_blends_branch_a_with_the_cap():
+    st = make_state(eef=(0, 0, 1.0), obj=(0.01, -0.02, 0.95))  # grasp phase
+    out = Corrector(PhysVLAConfig(mode="phys"))(RAW, st)
+    a_phys = RAW.copy()
+    a_phys[0, :3] = 0.5 * np.array([0.2, -0.4, -1.0]) + 0.5 * RAW[0, :3]
+    np.testing.assert_allclose(out, 0.95 * RAW + 0.05 * a_phys)
+
+
+def test_gripper_rules_in_approach():
+    st = make_state(obj=(0.5, 0.0, 0.9))  # approach
+    blend = Corrector(PhysVLAConfig(mode="phys", gripper_rule="blend"))(RAW, st)
+    veto = Corrector(PhysVLAConfig(mode="phys", gripper_rule="veto"))(RAW, st)
+    assert blend[0, 6] == pytest.approx(0.9) and veto[0, 6] == -1.0
+    np.testing.assert_allclose(blend[0, :6], veto[0, :6])
+    st_grasp = make_state()  # grasp: no veto
+    assert Corrector(PhysVLAConfig(mode="phys", gripper_rule="veto"))(RAW, st_grasp)[0, 6] == 1.0
+
+
+def test_temporal_mode_is_a_uniform_position_ema():
+    c = Corrector(PhysVLAConfig(mode="temporal"))
+    st = make_state()
+    out1 = c(RAW, st)
+    np.testing.assert_allclose(out1, RAW)
+    raw2 = np.zeros((1, 7))
+    out2 = c(raw2, st)
+    np.testing.assert_allclose(out2[0, :3], 0.85 * RAW[0, :3])
+    np.testing.assert_array_equal(out2[0, 3:], 0.0)
+    c.reset()
+    np.testing.assert_allclose(c(raw2, st), raw2)
+
+
+def test_batched_envs_do_not_interact():
+    st = make_state(batch_size=3, seed=1)
+    st.obj_pos[0] = (0.5, 0, 0.9)  # approach
+    st.obj_pos[1] = (0.0, 0, 0.95)
+    st.obj_rest_z[1] = 0.9  # lifted -> transport
+    raw = np.repeat(RAW, 3, axis=0)
+    together = Corrector(PhysVLAConfig(), 3)(raw, st)
+    for i in range(3):
+        alone = Corrector(PhysVLAConfig(), 1)(raw[i : i + 1], _row(st, i))
+        np.testing.assert_allclose(together[i], alone[0], atol=1e-12)
+
+
+def _row(st, i):
+    from lerobot_physvla.core.state import PhysState
+
+    return PhysState.unpack(st.pack()[i : i + 1])
+
+
+def test_per_env_reset_of_transport_memory():
+    st = make_state(batch_size=2, obj=(0, 0, 0.95), lift=0.05)  # both transporting
+    c = Corrector(PhysVLAConfig(mode="phys"), 2)
+    raw = np.repeat(RAW, 2, axis=0)
+    c(raw, st)
+    c.reset([1])
+    out = c(np.zeros((2, 7)), st)
+    assert Phase(c.last.phase[0]) == Phase.TRANSPORT
+    assert abs(out[0, 0]) > 0  # env 0 still remembers the first action
+    # env 1 restarted: its EMA equals its new input, 0 plus the lift bias (0.4 units on z), capped at 5 %
+    np.testing.assert_allclose(out[1, :3], [0.0, 0.0, 0.05 * 0.4])
+
+
+def test_chunks_all_and_first():
+    st = make_state(obj=(0.5, 0, 0.9))  # approach: veto changes the gripper of every corrected step
+    chunk = np.repeat(RAW[:, None, :], 4, axis=1)  # (B=1, T=4, A=7)
+    all_ = Corrector(PhysVLAConfig(mode="phys", gripper_rule="veto", chunk="all"))(chunk, st)
+    first = Corrector(PhysVLAConfig(mode="phys", gripper_rule="veto", chunk="first"))(chunk, st)
+    assert all_.shape == chunk.shape
+    assert (all_[0, :, 6] == -1.0).all()
+    assert first[0, 0, 6] == -1.0 and (first[0, 1:, 6] == 1.0).all()
+
+
+def test_chunk_steps_do_not_advance_memory():
+    st = make_state(obj=(0, 0, 0.95), lift=0.05)  # transport
+    chunk = np.stack([RAW[0], np.zeros(7), np.zeros(7)])[None]
+    c = Corrector(PhysVLAConfig(mode="phys"))
+    c(chunk, st)
+    after_chunk = c(np.zeros((1, 7)), st)
+    c2 = Corrector(PhysVLAConfig(mode="phys"))
+    c2(RAW, st)
+    np.testing.assert_allclose(after_chunk, c2(np.zeros((1, 7)), st))  # same memory as one step of RAW
+
+
+def test_shape_errors_are_raised_at_the_boundary():
+    c = Corrector(PhysVLAConfig(), 2)
+    with pytest.raises(ValueError, match="batch_size=2"):
+        c(np.zeros((1, 7)), make_state(batch_size=1))
+    with pytest.raises(ValueError, match="layout"):
+        c(np.zeros((2, 4)), make_state(batch_size=2))
+    with pytest.raises(ValueError, match=r"\(B, A\)"):
+        c(np.zeros(7), make_state(batch_size=2))
+    with pytest.raises(ValueError, match="2 envs"):
+        Corrector(PhysVLAConfig(), 1)(np.zeros((1, 7)), make_state(batch_size=2))
+
+
+def test_invalid_state_and_nonfinite_action_pass_through_and_are_counted():
+    st = make_state(batch_size=3, obj=(0.5, 0, 0.9))
+    st.valid[1] = False
+    raw = np.repeat(RAW, 3, axis=0)
+    raw[2, 0] = np.nan
+    c = Corrector(PhysVLAConfig(), 3)
+    with pytest.warns(RuntimeWarning, match="passing"):
+        out = c(raw, st)
+    np.testing.assert_array_equal(out[1], raw[1])
+    assert np.isnan(out[2, 0]) and np.array_equal(out[2, 1:], raw[2, 1:])
+    assert out[0, 6] != raw[0, 6]  # env 0 is still corrected
+    assert c.passthrough_counts == {"invalid_state": 1, "nonfinite_action": 1}
+    assert c.last.passthrough.tolist() == [False, True, True]
+
+
+@pytest.mark.parametrize("weighting", ["joint_diag", "task_space"])
+def test_singular_mass_matrix_passes_that_env_through(weighting):
+    st = make_state(batch_size=2, obj=(0.5, 0, 0.9))
+    st.M[1] = 0.0  # finite but not positive definite
+    c = Corrector(PhysVLAConfig(weighting=weighting), 2)
+    raw = np.repeat(RAW, 2, axis=0)
+    with pytest.warns(RuntimeWarning, match="singular_dynamics"):
+        out = c(raw, st)
+    np.testing.assert_array_equal(out[1], raw[1])
+    assert out[0, 6] != raw[0, 6]  # env 0 still corrected
+    assert c.passthrough_counts == {"singular_dynamics": 1}
+
+
+# ------------------------------------------------------------------ properties
+unit = st_.floats(-1.0, 1.0, allow_nan=False)
+coord = st_.floats(-0.5, 0.5, allow_nan=False)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    a=st_.lists(unit, min_size=7, max_size=7),
+    eef=st_.tuples(coord, coord, coord),
+    obj=st_.tuples(coord, coord, coord),
+    tgt=st_.tuples(coord, coord, coord),
+    lift=st_.floats(-0.05, 0.3),
+    mode=st_.sampled_from(MODES),
+    el=st_.sampled_from(["soft", "gated", "off"]),
+    weighting=st_.sampled_from(["joint_diag", "task_space"]),
+    grip=st_.sampled_from(["blend", "veto"]),
+    seed=st_.integers(0, 50),
+)
+def test_output_in_bounds_and_deviation_capped(a, eef, obj, tgt, lift, mode, el, weighting, grip, seed):
+    cfg = PhysVLAConfig(mode=mode, el_mode=el, weighting=weighting, gripper_rule=grip)
+    st = make_state(eef=eef, obj=obj, target=tgt, lift=lift, seed=seed)
+    raw = np.array([a])
+    c = Corrector(cfg)
+    for _ in range(3):  # several steps so the EMAs carry memory
+        out = c(raw, st)
+        assert out.shape == raw.shape
+        assert np.isfinite(out).all() and (out >= -1).all() and (out <= 1).all()
+        if mode in ("phys", "phys_el"):
+            dev = np.abs(out - raw)[0]
+            # eq. 2: |a - a_raw| = c |a_phys - a_raw| <= c (high - low), except the vetoed gripper
+            limit = np.full(7, cfg.cap * 2.0 + 1e-12)
+            if grip == "veto" and c.last.phase[0] == Phase.APPROACH:
+                limit[6] = 2.0
+            assert (dev <= limit).all()
+
+
+@settings(max_examples=60, deadline=None)
+@given(bad=st_.sampled_from([np.nan, np.inf, -np.inf]), idx=st_.integers(0, 6))
+def test_nonfinite_actions_never_become_corrections(bad, idx):
+    raw = RAW.copy()
+    raw[0, idx] = bad
+    c = Corrector(PhysVLAConfig())
+    with pytest.warns(RuntimeWarning):
+        out = c(raw, make_state())
+    np.testing.assert_array_equal(out, raw)  # unchanged, NaN included: nothing is invented
+    assert c.passthrough_counts["nonfinite_action"] == 1

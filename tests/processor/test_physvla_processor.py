@@ -1,0 +1,136 @@
+"""Processor steps: async sub-envs without cross-talk, episode resets, devices, chunks, save/load."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from lerobot.envs.utils import preprocess_observation
+from lerobot.processor import PolicyProcessorPipeline
+from lerobot.processor.converters import policy_action_to_transition, transition_to_policy_action
+
+from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.scripts.lerobot_physvla_config import add_corrector
+from lerobot_physvla.envs.libero_physvla import LiberoPhysVLAEnvConfig
+from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep, PhysVLAStateCaptureStep, get_bus
+from lerobot_physvla.core.state import PhysState
+
+from conftest import make_state
+
+
+def post_pipeline(step):
+    return PolicyProcessorPipeline(steps=[step], to_transition=policy_action_to_transition,
+                                   to_output=transition_to_policy_action)
+
+
+def test_async_sub_envs_each_use_their_own_state_and_reset_memory_per_episode():
+    cfg_env = LiberoPhysVLAEnvConfig(task="libero_spatial", task_ids=[0], cameras=False, episode_length=50)
+    vec = cfg_env.create_envs(n_envs=2, use_async_envs=True)["libero_spatial"][0]
+    env_pre, _ = cfg_env.get_env_processors()
+    cfg = PhysVLAConfig(mode="phys", cap=1.0)  # cap 1: the transport EMA shows in the output
+    step = PhysVLACorrectorStep(config=cfg.to_dict(), bus="async-test")
+    env_pre.steps[0] = PhysVLAStateCaptureStep(bus="async-test")
+    post = post_pipeline(step)
+    refs = [Corrector(cfg), Corrector(cfg)]  # what each env alone would get
+    rng = np.random.default_rng(0)
+    try:
+        for episode in range(2):
+            obs, _ = vec.reset(seed=[episode, episode + 10])
+            for refc in refs:
+                refc.reset()
+            for t in range(4):
+                o = env_pre(preprocess_observation(obs))
+                assert o["observation.state"].shape == (2, 8) and not any("physvla" in k for k in o)
+                rows = get_bus("async-test").state
+                assert rows.shape[0] == 2 and not np.allclose(rows[0], rows[1])  # two different scenes
+                # make both envs look like they are transporting, so the EMA memory matters
+                st = PhysState.unpack(rows.copy())
+                st.obj_rest_z[:] = st.obj_pos[:, 2] - 0.05
+                st.obj_pos[:, :2] = st.eef_pos[:, :2]
+                get_bus("async-test").publish(st.pack())
+                raw = rng.uniform(-0.3, 0.3, size=(2, 7)).astype(np.float32)
+                out = post(torch.from_numpy(raw)).numpy()
+                for i in range(2):
+                    alone = refs[i](raw[i : i + 1].astype(np.float64), PhysState.unpack(st.pack()[i]))
+                    np.testing.assert_allclose(out[i], alone[0], atol=1e-6)
+                assert step.corrector.last.phase.tolist() == [2, 2]  # transport
+                obs, *_ = vec.step(out.astype(np.float64))
+    finally:
+        vec.close()
+
+
+def test_no_state_passes_through_and_counts():
+    step = PhysVLACorrectorStep(bus="empty-bus")
+    a = torch.rand(3, 7)
+    with pytest.warns(RuntimeWarning, match="libero_physvla"):
+        out = post_pipeline(step)(a)
+    assert torch.equal(out, a) and step.passthrough_counts == {"no_state": 1}
+
+
+def test_chunks_dtype_and_batch_mismatch():
+    bus = get_bus("chunk-bus")
+    st = make_state(batch_size=2, obj=(0.5, 0.0, 0.9))  # approach
+    bus.publish(st.pack())
+    step = PhysVLACorrectorStep(config=PhysVLAConfig(mode="phys", gripper_rule="veto").to_dict(), bus="chunk-bus")
+    chunk = torch.ones(2, 5, 7, dtype=torch.float64) * 0.5
+    out = post_pipeline(step)(chunk)
+    assert out.shape == chunk.shape and out.dtype == torch.float64
+    assert (out[..., 6] == -1).all()  # every step of the chunk is vetoed (chunk="all")
+    with pytest.warns(RuntimeWarning, match="state_batch_mismatch"):
+        out3 = post_pipeline(step)(torch.zeros(3, 7))
+    assert torch.equal(out3, torch.zeros(3, 7))
+
+
+def test_episode_start_resets_the_memory_of_that_env_only():
+    bus = get_bus("episode-bus")
+    cfg = PhysVLAConfig(mode="temporal")
+    step = PhysVLACorrectorStep(config=cfg.to_dict(), bus="episode-bus")
+    st = make_state(batch_size=2)
+    post = post_pipeline(step)
+    for steps, value in (([0, 0], 1.0), ([1, 1], 1.0)):
+        st.episode_step[:] = steps
+        bus.publish(st.pack())
+        post(torch.full((2, 7), value))
+    st.episode_step[:] = [2, 0]  # env 1 was reset (its counter went back)
+    bus.publish(st.pack())
+    out = post(torch.zeros(2, 7))
+    assert out[0, 0] == pytest.approx(0.85)  # env 0 remembers the previous actions
+    assert out[1, 0] == 0.0  # env 1 starts afresh
+
+
+def test_save_load_round_trip_in_a_fresh_interpreter(tmp_path):
+    cfg = PhysVLAConfig(mode="phys_el", weighting="task_space", gripper_rule="veto", cap=0.07)
+    path = add_corrector(tmp_path, cfg)
+    entry = json.loads(path.read_text())["steps"][-1]
+    assert entry["class"] == "lerobot_physvla.processor.physvla_processor.PhysVLACorrectorStep"
+    probe = f"""
+import sys
+from lerobot.processor import PolicyProcessorPipeline
+from lerobot.processor.converters import policy_action_to_transition, transition_to_policy_action
+assert not any(m.startswith("lerobot_physvla") for m in sys.modules)
+p = PolicyProcessorPipeline.from_pretrained({str(tmp_path)!r}, config_filename="policy_postprocessor.json",
+    to_transition=policy_action_to_transition, to_output=transition_to_policy_action)
+step = p.steps[-1]
+print(type(step).__module__, step.cfg.mode, step.cfg.weighting, step.cfg.gripper_rule, step.cfg.cap)
+"""
+    r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert r.stdout.split() == ["lerobot_physvla.processor.physvla_processor", "phys_el", "task_space", "veto", "0.07"]
+
+
+def test_add_corrector_replaces_an_existing_one(tmp_path):
+    add_corrector(tmp_path, PhysVLAConfig(mode="phys"))
+    add_corrector(tmp_path, PhysVLAConfig(mode="temporal"))
+    steps = json.loads((tmp_path / "policy_postprocessor.json").read_text())["steps"]
+    assert [s["config"]["config"]["mode"] for s in steps] == ["temporal"]
+
+
+def test_unknown_mode_in_a_config_is_a_clear_error():
+    with pytest.raises(ValueError, match="unknown mode 'turbo'"):
+        PhysVLACorrectorStep(config={"mode": "turbo"})

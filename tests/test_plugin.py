@@ -1,0 +1,28 @@
+import pytest
+
+from lerobot_physvla.plugin import FlagError, build_config, split_argv
+
+
+def test_split_argv_takes_our_flags_and_keeps_lerobots():
+    argv = ["--policy.path=p", "--policy.postprocess=physvla", "--physvla.mode", "phys", "--physvla.cap=0.1",
+            "--physvla.grasp_offset_m=[0,0,0.02]", "--env.type=libero"]
+    post, overrides, rest = split_argv(argv)
+    assert post == "physvla" and rest == ["--policy.path=p", "--env.type=libero"]
+    assert overrides == {"mode": "phys", "cap": 0.1, "grasp_offset_m": (0.0, 0.0, 0.02)}
+    cfg = build_config(overrides)
+    assert cfg.cap == 0.1 and cfg.mode == "phys"
+
+
+@pytest.mark.parametrize(
+    "argv,message",
+    [(["--policy.postprocess=x"], "unknown"), (["--physvla.nope=1"], "unknown"),
+     (["--physvla.cap=abc"], "not a valid float"), (["--physvla.mode"], "needs a value")],
+)
+def test_bad_flags(argv, message):
+    with pytest.raises(FlagError, match=message):
+        split_argv(argv)
+
+
+def test_bad_value_is_a_flag_error():
+    with pytest.raises(FlagError, match="cap"):
+        build_config({"cap": 2.0})
