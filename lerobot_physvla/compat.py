@@ -6,16 +6,17 @@ module (and only this module) reaches into it:
   `lerobot.envs.libero.create_libero_envs` builds (for the `libero_physvla` env type);
 - `vector_env_class`: lerobot's own choice of Sync/AsyncVectorEnv;
 - `install_eval_hook`: replaces `lerobot.scripts.lerobot_eval.eval_main` with a version that
-  (1) turns a `libero` env config into `libero_physvla` (state export, same fields),
-  (2) appends `PhysVLACorrectorStep` to the policy postprocessor that `make_pre_post_processors`
+  (1) adapts the env config (the caller turns `libero` into `libero_physvla`: state export),
+  (2) appends a corrector step to the policy postprocessor that `make_pre_post_processors`
       returns (unless the checkpoint's own postprocessor already has one), and
-  (3) writes per-episode diagnostics beside eval_info.json.
+  (3) hands the step to a callback after the evaluation (diagnostics beside eval_info.json).
+It imports nothing of lerobot_physvla: the caller passes in what it needs, so the env type and
+the steps can import this module without a cycle.
 """
 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import functools
 import logging
 from collections.abc import Callable
@@ -69,45 +70,35 @@ def wrapped_libero_env_factories(wrap: Callable):
         lerobot_libero._make_env_fns = original
 
 
-def as_physvla_env(env_cfg):
-    """A `libero` env config becomes `libero_physvla` with the same fields; others are returned as is."""
-    from lerobot.envs.configs import LiberoEnv
-
-    from lerobot_physvla.envs.libero_physvla import LiberoPhysVLAEnvConfig
-
-    if type(env_cfg) is LiberoEnv:
-        fields = {f.name: getattr(env_cfg, f.name) for f in dataclasses.fields(LiberoEnv) if f.init}
-        fields.pop("features", None)
-        fields.pop("features_map", None)
-        return LiberoPhysVLAEnvConfig(**fields)
-    return env_cfg
-
-
 def install_eval_hook(
-    make_step: Callable[[], object], on_done: Callable[[object, object], None], attach: Callable[[object], object]
+    step_type: type,
+    make_step: Callable[[], object],
+    on_done: Callable[[object, object], None],
+    attach: Callable[[object], object],
+    adapt_env: Callable[[object], object],
 ) -> None:
     """Replace lerobot-eval's `eval_main` (see module docstring).
 
-    make_step() builds the PhysVLACorrectorStep to append; attach(step) adapts one the checkpoint
-    already has; on_done(cfg, step) runs after the evaluation with the parsed EvalPipelineConfig.
+    step_type: the corrector step class (a postprocessor holding one keeps it); make_step() builds
+    one to append; attach(step) adapts one the checkpoint already has; adapt_env(env_cfg) returns
+    the env config to evaluate; on_done(cfg, step) runs after the evaluation with the parsed
+    EvalPipelineConfig.
     """
     check_lerobot_version()
     from lerobot.configs import parser
     from lerobot.configs.eval import EvalPipelineConfig
     from lerobot.scripts import lerobot_eval
 
-    from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep
-
     inner = lerobot_eval.eval_main.__wrapped__  # the function under @parser.wrap()
     original_factory = lerobot_eval.make_pre_post_processors
 
     def eval_main(cfg):
-        cfg.env = as_physvla_env(cfg.env)
+        cfg.env = adapt_env(cfg.env)
         holder: dict[str, object] = {}
 
         def make_pre_post_processors(*args, **kwargs):
             pre, post = original_factory(*args, **kwargs)
-            step = next((s for s in post.steps if isinstance(s, PhysVLACorrectorStep)), None)
+            step = next((s for s in post.steps if isinstance(s, step_type)), None)
             if step is None:
                 step = make_step()
                 post.steps.append(step)

@@ -25,9 +25,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from lerobot_physvla.core.branch_a import phase_step
 from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.corrections.base import N_MEM, channel_index, params
 from lerobot_physvla.core.dynamics import ELGate, el_gate
-from lerobot_physvla.core.phase import APPROACH, phase_step
+from lerobot_physvla.core.phase import APPROACH
 from lerobot_physvla.core.state import NONFINITE_OUTPUT, OK, REASONS, SINGULAR, PhysState, field_offsets
 
 
@@ -113,24 +115,16 @@ class Corrector:
         self.last: StepDiagnostics | None = None
         self._pos = lay.pos_index
         self._grip = -1 if lay.gripper is None else lay.gripper
-        c = self.cfg
-        self._p_a = np.array(
-            [c.beta, *c.grasp_offset_m, c.lift_bias_m / lay.metres_per_unit, c.alpha_transport, c.d_thresh_m,
-             lay.metres_per_unit, lay.gripper_open, lay.low, lay.high],
-            dtype=np.float64,
-        )
-        self._ema = np.zeros((b, 3))  # transport EMA (Branch A), action units
-        self._in_tr = np.zeros((b, 1), np.bool_)
-        self._t_ema = np.zeros((b, 3))  # temporal-mode EMA, action units
-        self._t_init = np.zeros((b, 1), np.bool_)
+        self._idx = channel_index(lay)
+        self._p_a = params(self.cfg, lay)
+        self._mem = np.zeros((b, N_MEM))  # per-env memory of the corrections (EMA), corrections/base.py
         self._offsets: dict[int, np.ndarray] = {}
         self._warned: set[str] = set()
 
     def reset(self, env_ids=None) -> None:
         """Forget per-env memory (EMAs) for env_ids (all envs if None), e.g. at an episode start."""
         sel = slice(None) if env_ids is None else np.asarray(env_ids)
-        for buf in (self._ema, self._in_tr, self._t_ema, self._t_init):
-            buf[sel] = 0
+        self._mem[sel] = 0.0
 
     # ------------------------------------------------------------------ API boundary
     def _check(self, actions, state: PhysState) -> np.ndarray:
@@ -178,8 +172,8 @@ class Corrector:
         t0 = time.perf_counter()
         temporal = cfg.mode == "temporal"
         a_phys, phase, geo, status = phase_step(
-            a_raw, flat, self._phase_offsets(n), self._pos, self._grip, self._p_a, cfg.delta_grasp_m, cfg.h_lift_m,
-            self._ema, self._in_tr, self._t_ema, self._t_init, commit, temporal, cfg.alpha_temporal,
+            a_raw, flat, self._phase_offsets(n), self._idx, self._p_a, cfg.delta_grasp_m, cfg.h_lift_m,
+            self._mem, commit, temporal,
         )
         t1 = time.perf_counter()
         weights, r_diag = np.zeros_like(a_raw), np.full((self.batch_size, 2), np.nan)

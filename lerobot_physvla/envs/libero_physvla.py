@@ -13,6 +13,7 @@ state-based policies have the scene. The env processors put `PhysVLAStateCapture
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import partial
 
@@ -27,7 +28,7 @@ from lerobot.processor import PolicyProcessorPipeline
 from lerobot.processor.env_processor import LiberoProcessorStep
 from lerobot.utils.constants import OBS_ENV_STATE, OBS_IMAGES
 
-from lerobot_physvla import compat as compat
+from lerobot_physvla import compat
 from lerobot_physvla.processor.physvla_processor import EXTRA_KEY, STATE_KEY, PhysVLAStateCaptureStep
 from lerobot_physvla.core.state import field_offsets, packed_size
 
@@ -159,3 +160,13 @@ class LiberoPhysVLAEnvConfig(LiberoEnvConfig):
             PolicyProcessorPipeline(steps=[PhysVLAStateCaptureStep(), LiberoProcessorStep()]),
             PolicyProcessorPipeline(steps=[]),
         )
+
+
+def as_physvla_env(env_cfg):
+    """A `libero` env config becomes `libero_physvla` with the same fields; others are returned as is."""
+    if type(env_cfg) is LiberoEnvConfig:
+        fields = {f.name: getattr(env_cfg, f.name) for f in dataclasses.fields(LiberoEnvConfig) if f.init}
+        fields.pop("features", None)
+        fields.pop("features_map", None)
+        return LiberoPhysVLAEnvConfig(**fields)
+    return env_cfg

@@ -46,7 +46,7 @@ def add_corrector(policy_dir: str | Path, cfg: PhysVLAConfig) -> Path:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from lerobot_physvla.plugin import FlagError, build_config, split_argv
+    from lerobot_physvla.flags import FlagError, build_config, split_argv
 
     argv = sys.argv[1:] if argv is None else argv
     try:

@@ -1,6 +1,6 @@
 import pytest
 
-from lerobot_physvla.plugin import FlagError, build_config, split_argv
+from lerobot_physvla.flags import FlagError, build_config, split_argv
 
 
 def test_split_argv_takes_our_flags_and_keeps_lerobots():

@@ -1,0 +1,136 @@
+"""Branch A over B envs: validity, geometry, phase (eq. 3) and the phase's correction.
+
+    approach   corrections.approach_veto
+    grasp      corrections.grasp_guidance
+    transport  corrections.transport_smoothing
+    place      corrections.place_deceleration        (eq. 5)
+    (mode temporal: corrections.temporal_ema in every phase, instead of the above)
+
+The per-env arithmetic is compiled with numba (microseconds an env-step, where small-array numpy
+costs ~40); `corrector.Corrector` runs `phase_step` over B envs with per-env memory.
+
+Compiled-cache safety: numba's on-disk cache checks a cached kernel against its own source file
+only, so a cached `phase_step` would keep running the old code of a correction edited in another
+file. Its cache key also hashes the function's closure (numba's `_index_key`), so `phase_step`
+closes over a hash of every source file it compiles in (`SOURCE_KEY`); editing any of them
+compiles it afresh. The helpers it calls are not cached themselves: they are compiled into it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from lerobot_physvla.core.corrections.approach_veto import approach_veto
+from lerobot_physvla.core.corrections.base import ACTIVE, D_OBJ_XY, D_TGT_XY, EEF, HIGH, LIFT, LOW, N_GEO, OBJ, TGT
+from lerobot_physvla.core.corrections.grasp_guidance import grasp_guidance
+from lerobot_physvla.core.corrections.place_deceleration import place_deceleration
+from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
+from lerobot_physvla.core.corrections.transport_smoothing import transport_smoothing
+from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT, phase_of
+from lerobot_physvla.core.state import INVALID_STATE, NONFINITE_ACTION, NONFINITE_STATE, OK
+
+_CORE = Path(__file__).resolve().parent
+# every file compiled into phase_step: this one, the FSM, the state's status codes, the corrections
+SOURCE_FILES = (Path(__file__).resolve(), _CORE / "phase.py", _CORE / "state.py",
+                *sorted((_CORE / "corrections").glob("*.py")))
+
+
+def source_key(files=SOURCE_FILES) -> int:
+    """63-bit hash of the sources compiled into `phase_step` (its cache key; see module doc)."""
+    h = hashlib.sha256()
+    for f in files:
+        h.update(f.read_bytes())
+    return int.from_bytes(h.digest()[:8], "little") >> 1
+
+
+SOURCE_KEY = source_key()
+
+
+@njit
+def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
+    """Branch A for one env: a_phys (A,) from a_raw by the phase's correction, clipped to bounds."""
+    for k in range(a_raw.shape[0]):
+        a_phys[k] = a_raw[k]
+    if phase == APPROACH:
+        approach_veto(a_raw, a_phys, idx, geo, p, mem, commit)
+    elif phase == GRASP:
+        grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit)
+    elif phase == TRANSPORT:
+        transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit)
+    elif phase == PLACE:
+        place_deceleration(a_raw, a_phys, idx, geo, p, mem, commit)
+    if commit:
+        mem[ACTIVE] = 1.0 if phase == TRANSPORT else 0.0
+    for k in range(a_phys.shape[0]):
+        a_phys[k] = min(max(a_phys[k], p[LOW]), p[HIGH])
+
+
+@njit
+def temporal_row(a_raw, a_phys, idx, geo, p, mem, commit):
+    """The temporal mode for one env: the uniform EMA in every phase (not clipped: a convex
+    combination of in-bounds actions stays in bounds)."""
+    for k in range(a_raw.shape[0]):
+        a_phys[k] = a_raw[k]
+    temporal_ema(a_raw, a_phys, idx, geo, p, mem, commit)
+
+
+def _compile(key: int):
+    @njit(cache=True)
+    def phase_step(a_raw, flat, o, idx, p, d_grasp, h_lift, mem, commit, temporal):
+        """Validity, geometry, phase and Branch A (or the temporal EMA) for B envs.
+
+        flat: (B, L) packed states; o: offsets of [valid, eef_pos, obj_pos, obj_rest_z, target_pos];
+        idx, p: see corrections/base.py; mem: (B, N_MEM) per-env memory.
+        Returns (a_phys (B, A), phase (B,) int8, geo (B, 3) [d_obj_xy, d_tgt_xy, lift] m, status (B,) int8).
+        """
+        key  # noqa: B018 - read, so it is in the closure and hence in numba's cache key
+        b, a_dim = a_raw.shape
+        a_phys = np.empty_like(a_raw)
+        phase = np.full(b, -1, np.int8)
+        geo = np.full((b, 3), np.nan)  # d_obj_xy, d_tgt_xy, lift (m)
+        status = np.zeros(b, np.int8)
+        g = np.empty(N_GEO)
+        for i in range(b):
+            row = flat[i]
+            finite = True
+            for k in range(row.shape[0]):
+                if not np.isfinite(row[k]):
+                    finite = False
+                    break
+            if not row[o[0]] > 0.5:
+                status[i] = INVALID_STATE
+            elif not finite:
+                status[i] = NONFINITE_STATE
+            else:
+                for k in range(a_dim):
+                    if not np.isfinite(a_raw[i, k]):
+                        status[i] = NONFINITE_ACTION
+                        break
+            if status[i] != OK:
+                a_phys[i] = a_raw[i]
+                continue
+            for k in range(3):
+                g[EEF + k] = row[o[1] + k]
+                g[OBJ + k] = row[o[2] + k]
+                g[TGT + k] = row[o[4] + k]
+            d_obj = np.hypot(g[EEF] - g[OBJ], g[EEF + 1] - g[OBJ + 1])
+            d_tgt = np.hypot(g[EEF] - g[TGT], g[EEF + 1] - g[TGT + 1])
+            lift = g[OBJ + 2] - row[o[3]]
+            g[D_OBJ_XY], g[D_TGT_XY], g[LIFT] = d_obj, d_tgt, lift
+            geo[i, 0], geo[i, 1], geo[i, 2] = d_obj, d_tgt, lift
+            ph = phase_of(d_obj, d_tgt, lift, d_grasp, h_lift)  # eq. 3
+            phase[i] = ph
+            if temporal:
+                temporal_row(a_raw[i], a_phys[i], idx, g, p, mem[i], commit)
+            else:
+                branch_a_row(a_raw[i], a_phys[i], ph, idx, g, p, mem[i], commit)
+        return a_phys, phase, geo, status
+
+    return phase_step
+
+
+phase_step = _compile(SOURCE_KEY)

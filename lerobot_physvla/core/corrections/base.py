@@ -1,0 +1,60 @@
+"""What every Branch A correction shares: one signature, one parameter vector, one memory row.
+
+Each correction is a numba function of one env that edits the candidate action in place:
+
+    correction(a_raw, a_phys, idx, geo, p, mem, commit) -> None
+
+    a_raw   (A,) float   the policy's action, action units (read only)
+    a_phys  (A,) float   the candidate, action units: read, then written
+    idx     (4,) int     action channels [x, y, z, gripper] (gripper = -1 if the layout has none)
+    geo     (N_GEO,)     geometry of this env: eef xyz, object xyz, target xyz (m, world),
+                         d_obj_xy, d_tgt_xy (m), lift = object height above its rest (m)
+    p       (N_PARAMS,)  parameters, indexed by the constants below, units in their names
+    mem     (N_MEM,)     this env's memory (EMA state); written only when commit is True
+    commit  bool         True for the step about to execute (a chunk's first), False for
+                         look-ahead steps of a chunk, which must leave memory untouched
+
+The composer (`core/branch_a.py`) copies a_raw into a_phys, calls the phase's correction, and
+clips to the action bounds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lerobot_physvla.core.config import ActionLayout, PhysVLAConfig
+
+# idx
+X, Y, Z, GRIPPER = range(4)
+# geo
+EEF, OBJ, TGT = 0, 3, 6  # xyz triples, m
+D_OBJ_XY, D_TGT_XY, LIFT = 9, 10, 11  # m
+N_GEO = 12
+# p
+(BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M, LIFT_BIAS_U, ALPHA_TRANSPORT, D_THRESH_M, METRES_PER_UNIT,
+ GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL) = range(12)
+N_PARAMS = 12
+# mem
+EMA = 0  # 3 entries: x, y, z, action units
+ACTIVE = 3  # 1.0 once the EMA holds a value (transport: the previous step was in transport)
+N_MEM = 4
+
+
+def channel_index(layout: ActionLayout) -> np.ndarray:
+    """idx for a layout: [x, y, z, gripper or -1]."""
+    return np.array([*layout.pos, -1 if layout.gripper is None else layout.gripper], dtype=np.intp)
+
+
+def params(cfg: PhysVLAConfig, layout: ActionLayout) -> np.ndarray:
+    """p for a configuration and layout (metres converted to action units where the name says _U)."""
+    p = np.empty(N_PARAMS)
+    p[BETA] = cfg.beta
+    p[OFFSET_X_M : OFFSET_Z_M + 1] = cfg.grasp_offset_m
+    p[LIFT_BIAS_U] = cfg.lift_bias_m / layout.metres_per_unit
+    p[ALPHA_TRANSPORT] = cfg.alpha_transport
+    p[D_THRESH_M] = cfg.d_thresh_m
+    p[METRES_PER_UNIT] = layout.metres_per_unit
+    p[GRIPPER_OPEN] = layout.gripper_open
+    p[LOW], p[HIGH] = layout.low, layout.high
+    p[ALPHA_TEMPORAL] = cfg.alpha_temporal
+    return p

@@ -1,0 +1,16 @@
+"""Place: the deceleration ramp of eq. (5).
+
+    a_pos = min(1, d_tgt_xy / d_thresh) a_raw_pos         (d_tgt_xy, d_thresh in metres)
+"""
+
+from numba import njit
+
+from lerobot_physvla.core.corrections.base import D_THRESH_M, D_TGT_XY
+
+
+@njit(cache=True)
+def place_deceleration(a_raw, a_phys, idx, geo, p, mem, commit):
+    """Position channels scaled down near the target; gripper and rotation untouched."""
+    ramp = min(1.0, geo[D_TGT_XY] / p[D_THRESH_M])  # eq. 5
+    for k in range(3):
+        a_phys[idx[k]] = ramp * a_raw[idx[k]]

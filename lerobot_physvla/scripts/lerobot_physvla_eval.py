@@ -1,0 +1,86 @@
+"""`lerobot-eval --policy.postprocess=physvla` and `lerobot-physvla-eval`: the corrected evaluation.
+
+`activate_eval(argv)` strips our flags from argv (lerobot's parser would reject them) and, for
+`--policy.postprocess=physvla`, installs the eval hook of `compat`: a `libero` env becomes
+`libero_physvla`, the corrector step is appended to the policy postprocessor, and per-episode
+diagnostics are written beside eval_info.json. Bad flags end the program with a one-line error
+and exit code 2.
+
+    lerobot-physvla-eval ARGS   is   lerobot-eval ARGS   (the plugin applies the flags either way)
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import sys
+from pathlib import Path
+
+from lerobot_physvla import compat
+from lerobot_physvla.diagnostics import EpisodeRecorder
+from lerobot_physvla.envs.libero_physvla import as_physvla_env
+from lerobot_physvla.flags import FlagError, build_config, split_argv
+from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep
+
+
+def _write_diagnostics(cfg, step) -> None:
+    recorder = getattr(step, "_physvla_recorder", None)
+    if recorder is None or cfg.output_dir is None:
+        return
+    from lerobot.envs.libero import TASK_SUITE_MAX_STEPS
+
+    task = str(getattr(cfg.env, "task", "")).split(",")[0]
+    recorder.horizon = getattr(cfg.env, "episode_length", None) or TASK_SUITE_MAX_STEPS.get(task)
+    info = Path(cfg.output_dir) / "eval_info.json"
+    if info.is_file():
+        per_task = json.loads(info.read_text()).get("per_task", [])
+        recorder.apply_env_successes({int(t["task_id"]): t["metrics"]["successes"] for t in per_task})
+    path = recorder.write(cfg.output_dir, config=step.config)
+    counts = dict(step.passthrough_counts) or "none"
+    logging.info("physvla: diagnostics written to %s (pass-throughs: %s)", path, counts)
+    print(f"physvla: diagnostics in {Path(path).parent} (physvla_diagnostics.json, physvla_episodes.jsonl)")
+
+
+def activate_eval(argv: list[str]) -> None:
+    """Strip our flags from argv in place and install the eval hook if asked. Exits 2 on bad flags."""
+    try:
+        post, overrides, rest = split_argv(argv[1:])
+        if overrides and post != "physvla":
+            raise FlagError("--physvla.* flags need --policy.postprocess=physvla")
+        cfg = build_config(overrides) if post == "physvla" else None
+        if cfg is not None:
+            compat.check_lerobot_version()
+    except (FlagError, compat.UnsupportedLerobot) as e:
+        print(f"lerobot-physvla: error: {e}", file=sys.stderr)
+        raise SystemExit(2) from None
+    argv[1:] = rest
+    if cfg is None:
+        return
+
+    def attach(step):  # record every step of the evaluation (also a checkpoint's own corrector)
+        if getattr(step, "_physvla_recorder", None) is None:
+            step._physvla_recorder = EpisodeRecorder(
+                save_states=os.environ.get("PHYSVLA_SAVE_STATES") == "1", gripper_index=step.cfg.action_layout.gripper
+            )
+            step.listeners.append(step._physvla_recorder)
+        return step
+
+    def make_step():
+        return attach(PhysVLACorrectorStep(config=cfg.to_dict()))
+
+    compat.install_eval_hook(PhysVLACorrectorStep, make_step, _write_diagnostics, attach, as_physvla_env)
+
+
+def eval_main() -> None:
+    """`lerobot-physvla-eval`: lerobot-eval with the same arguments (the flags work the same).
+
+    lerobot's plugin import (`lerobot_env_physvla`) applies the flags, as in `lerobot-eval`.
+    """
+    from lerobot.scripts import lerobot_eval
+    from lerobot.utils.import_utils import register_third_party_plugins
+    from lerobot.utils.utils import init_logging
+
+    init_logging()
+    register_third_party_plugins()
+    lerobot_eval.eval_main()

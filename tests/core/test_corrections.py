@@ -1,0 +1,119 @@
+"""Each Branch A correction on its own (one shared signature), and the compiled cache's safety."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lerobot_physvla.core import branch_a
+from lerobot_physvla.core.config import FETCH_4D, LIBERO_OSC_POSE, PhysVLAConfig
+from lerobot_physvla.core.corrections import (
+    approach_veto, grasp_guidance, place_deceleration, temporal_ema, transport_smoothing,
+)
+from lerobot_physvla.core.corrections.base import (
+    ACTIVE, D_TGT_XY, EEF, EMA, N_GEO, N_MEM, OBJ, channel_index, params,
+)
+
+PKG = Path(branch_a.__file__).resolve().parents[2]
+
+
+def ctx(layout=LIBERO_OSC_POSE, eef=(0.0, 0.0, 1.0), obj=(0.02, -0.01, 0.9), d_tgt=0.04, **cfg):
+    geo = np.zeros(N_GEO)
+    geo[EEF:EEF + 3], geo[OBJ:OBJ + 3], geo[D_TGT_XY] = eef, obj, d_tgt
+    return channel_index(layout), geo, params(PhysVLAConfig(**cfg), layout), np.zeros(N_MEM)
+
+
+def run(fn, a_raw, idx, geo, p, mem, commit=True):
+    a_raw = np.asarray(a_raw, dtype=float)
+    a_phys = a_raw.copy()
+    fn(a_raw, a_phys, idx, geo, p, mem, commit)
+    return a_phys
+
+
+def test_approach_veto_opens_the_gripper_only():
+    a = [0.3, -0.2, 0.1, 0.0, 0.0, 0.0, 1.0]
+    out = run(approach_veto, a, *ctx())
+    assert out[6] == -1.0 and np.array_equal(out[:6], a[:6])
+    out = run(approach_veto, [0.1, 0.1, 0.1, -1.0], *ctx(FETCH_4D))  # Fetch: +1 is open
+    assert out[3] == 1.0
+
+
+def test_grasp_guidance_blends_toward_the_waypoint_in_action_units():
+    idx, geo, p, mem = ctx(beta=0.5, grasp_offset_m=(0.0, 0.0, 0.05))
+    a = np.array([0.2, 0.2, -0.4, 0.1, 0.1, 0.1, 1.0])
+    out = run(grasp_guidance, a, idx, geo, p, mem)
+    waypoint_units = (np.array([0.02, -0.01, 0.95]) - [0.0, 0.0, 1.0]) / 0.05
+    np.testing.assert_allclose(out[:3], 0.5 * waypoint_units + 0.5 * a[:3])
+    assert np.array_equal(out[3:], a[3:])
+
+
+def test_transport_smoothing_biases_z_and_remembers_only_when_committed():
+    idx, geo, p, mem = ctx(lift_bias_m=0.02, alpha_transport=0.9)
+    a = np.array([1.0, 0.0, 0.0, 0, 0, 0, 1.0])
+    first = run(transport_smoothing, a, idx, geo, p, mem, commit=False)
+    np.testing.assert_allclose(first[:3], [1.0, 0.0, 0.4])  # EMA starts at the biased action
+    assert not mem.any()  # look-ahead: no memory written
+    mem[ACTIVE] = 1.0
+    mem[EMA:EMA + 3] = [0.0, 0.0, 0.0]
+    out = run(transport_smoothing, a, idx, geo, p, mem, commit=True)
+    np.testing.assert_allclose(out[:3], [0.1, 0.0, 0.04])
+    np.testing.assert_allclose(mem[EMA:EMA + 3], [0.1, 0.0, 0.04])
+
+
+@pytest.mark.parametrize("d_tgt,ramp", [(0.0, 0.0), (0.04, 0.5), (0.2, 1.0)])
+def test_place_deceleration_ramp(d_tgt, ramp):
+    a = np.array([0.6, -0.4, 0.2, 0.3, 0, 0, 1.0])
+    out = run(place_deceleration, a, *ctx(d_tgt=d_tgt, d_thresh_m=0.08))
+    np.testing.assert_allclose(out[:3], ramp * a[:3])
+    assert np.array_equal(out[3:], a[3:])
+
+
+def test_temporal_ema_starts_at_the_action_then_smooths():
+    idx, geo, p, mem = ctx(alpha_temporal=0.5)
+    assert np.allclose(run(temporal_ema, [1.0, 0, 0, 0, 0, 0, 1], idx, geo, p, mem)[:3], [1, 0, 0])
+    assert np.allclose(run(temporal_ema, [0.0, 0, 0, 0, 0, 0, 1], idx, geo, p, mem)[:3], [0.5, 0, 0])
+
+
+def test_source_key_covers_every_correction_file():
+    files = {f.name for f in branch_a.SOURCE_FILES}
+    on_disk = {f.name for f in (PKG / "lerobot_physvla/core/corrections").glob("*.py")}
+    assert on_disk <= files and {"phase.py", "state.py", "branch_a.py"} <= files
+
+
+_PROBE = """
+import numpy as np
+from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.state import PhysState
+st = PhysState.empty(1, 7); st.valid[:] = 1; st.dt[:] = 0.05
+st.eef_pos[:] = (0, 0, 1.0); st.obj_pos[:] = (0.02, 0, 0.9); st.obj_rest_z[:] = 0.9; st.target_pos[:] = (0.5, 0, 0.9)
+c = Corrector(PhysVLAConfig(mode="phys", cap=1.0), 1)
+print(repr(float(c(np.zeros((1, 7)), st)[0, 0])))
+"""
+
+
+def test_editing_one_correction_file_recompiles_the_cached_kernel(tmp_path):
+    """numba's cache checks a kernel against its own file only: an edit to grasp_guidance.py must
+    still reach the cached phase_step that compiles it in (closure-keyed, see branch_a.py)."""
+    shutil.copytree(PKG / "lerobot_physvla", tmp_path / "lerobot_physvla",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = {"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+
+    def probe():
+        r = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, cwd=tmp_path)
+        assert r.returncode == 0, r.stderr
+        return float(r.stdout.strip().splitlines()[-1])
+
+    before = probe()  # grasp phase, beta 0.5: 0.5 * 0.02 m / 0.05 m per unit = 0.2
+    assert before == pytest.approx(0.2)
+    assert any((tmp_path / "numba").rglob("*branch_a*phase_step*.nbi")), "phase_step was not cached"
+    assert probe() == before  # served from the cache
+    f = tmp_path / "lerobot_physvla/core/corrections/grasp_guidance.py"
+    f.write_text(f.read_text().replace("beta, scale = p[BETA], p[METRES_PER_UNIT]",
+                                       "beta, scale = 1.0, p[METRES_PER_UNIT]"))
+    assert probe() == pytest.approx(0.4)  # the edit is in effect, not a stale compiled kernel

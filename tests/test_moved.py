@@ -1,0 +1,78 @@
+"""What users saved before the layout moved keeps working (lerobot_physvla/_moved.py)."""
+
+from __future__ import annotations
+
+import importlib
+import json
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+from lerobot_physvla._moved import MOVED
+
+ROOT = Path(__file__).resolve().parents[1]
+FIXTURE = ROOT / "tests/fixtures/postprocessor_v0_1"  # written by lerobot-physvla-config before the move
+
+
+def test_a_postprocessor_saved_before_the_move_loads_with_a_warning_naming_the_new_path():
+    entry = json.loads((FIXTURE / "policy_postprocessor.json").read_text())["steps"][0]
+    assert entry["class"] == "lerobot_physvla.lerobot_steps.PhysVLACorrectorStep"  # the old path
+    probe = f"""
+import sys, warnings
+warnings.simplefilter("always")
+from lerobot.processor import PolicyProcessorPipeline
+from lerobot.processor.converters import policy_action_to_transition, transition_to_policy_action
+assert not any(m.startswith("lerobot_physvla") for m in sys.modules)
+with warnings.catch_warnings(record=True) as caught:
+    p = PolicyProcessorPipeline.from_pretrained({str(FIXTURE)!r}, config_filename="policy_postprocessor.json",
+        to_transition=policy_action_to_transition, to_output=transition_to_policy_action)
+step = p.steps[-1]
+from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep
+assert type(step) is PhysVLACorrectorStep
+print(step.cfg.mode, step.cfg.cap)
+print([str(w.message) for w in caught if issubclass(w.category, FutureWarning)])
+"""
+    r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=300, cwd=FIXTURE)
+    assert r.returncode == 0, r.stderr[-3000:]
+    first, second = r.stdout.strip().splitlines()[-2:]
+    assert first == "phys_el 0.05"
+    assert "lerobot_physvla.lerobot_steps is deprecated" in second
+    assert "lerobot_physvla.processor.physvla_processor" in second
+
+
+@pytest.mark.parametrize("old", sorted(MOVED))
+def test_every_old_module_path_forwards_to_its_new_home(old):
+    sys.modules.pop(old, None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        mod = importlib.import_module(old)
+    new = importlib.import_module(MOVED[old][0])
+    assert any(issubclass(w.category, FutureWarning) and MOVED[old][0] in str(w.message) for w in caught)
+    public = [n for n in vars(new) if not n.startswith("_")]
+    assert public, new
+    assert all(getattr(mod, n) is getattr(new, n) for n in public)
+    with pytest.raises(AttributeError, match="moved to"):
+        getattr(mod, "no_such_name")
+
+
+def test_old_names_that_moved_to_a_second_module_still_resolve():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from lerobot_physvla.lerobot_compat import as_physvla_env
+        from lerobot_physvla.lerobot_plugin import activate, split_argv
+        from lerobot_physvla.phase import phase_step
+    from lerobot_physvla.core.branch_a import phase_step as new_phase_step
+    from lerobot_physvla.envs.libero_physvla import as_physvla_env as new_env
+    from lerobot_physvla.flags import split_argv as new_split
+    from lerobot_physvla.plugin import activate as new_activate
+    assert (as_physvla_env, activate, split_argv, phase_step) == (new_env, new_activate, new_split, new_phase_step)
+
+
+def test_shipped_presets_name_the_new_class_path():
+    for mode in ("baseline", "temporal", "phys", "phys_el"):
+        steps = json.loads((ROOT / f"policies/physvla_configs/{mode}/policy_postprocessor.json").read_text())["steps"]
+        assert steps[-1]["class"] == "lerobot_physvla.processor.physvla_processor.PhysVLACorrectorStep"
+        assert steps[-1]["config"]["config"]["mode"] == mode
