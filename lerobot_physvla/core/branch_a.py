@@ -50,7 +50,7 @@ def source_key(files=SOURCE_FILES) -> int:
 SOURCE_KEY = source_key()
 
 
-@njit
+@njit(error_model="numpy")
 def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
     """Branch A for one env: a_phys (A,) from a_raw by the phase's correction, clipped to bounds."""
     for k in range(a_raw.shape[0]):
@@ -69,7 +69,7 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
         a_phys[k] = min(max(a_phys[k], p[LOW]), p[HIGH])
 
 
-@njit
+@njit(error_model="numpy")
 def temporal_row(a_raw, a_phys, idx, geo, p, mem, commit):
     """The temporal mode for one env: the uniform EMA in every phase (not clipped: a convex
     combination of in-bounds actions stays in bounds)."""
@@ -79,7 +79,7 @@ def temporal_row(a_raw, a_phys, idx, geo, p, mem, commit):
 
 
 def _compile(key: int):
-    @njit(cache=True)
+    @njit(cache=True, error_model="numpy")
     def phase_step(a_raw, flat, o, idx, p, d_grasp, h_lift, mem, commit, temporal):
         """Validity, geometry, phase and Branch A (or the temporal EMA) for B envs.
 

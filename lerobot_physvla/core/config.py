@@ -34,6 +34,10 @@ class ActionLayout:
             channels (0.05 m for LIBERO / robosuite OSC_POSE).
         gripper_open: the gripper command value that means "open" (-1 in robosuite).
         low, high: the action space bounds (scalars, broadcast to every channel).
+        absolute: False for delta layouts (the position/rotation channels are increments, so
+            holding still is 0); True for absolute targets (holding still is the last target).
+            The gripper channel is always treated as absolute. Used by the safe hold action that
+            replaces a non-finite policy action.
     """
 
     dim: int
@@ -44,6 +48,7 @@ class ActionLayout:
     gripper_open: float = -1.0
     low: float = -1.0
     high: float = 1.0
+    absolute: bool = False
 
     def __post_init__(self) -> None:
         used = list(self.pos) + list(self.rot) + ([self.gripper] if self.gripper is not None else [])
@@ -53,12 +58,40 @@ class ActionLayout:
             raise ValueError(f"ActionLayout indices {used} must be distinct and in [0, {self.dim})")
         if not self.metres_per_unit > 0:
             raise ValueError(f"metres_per_unit must be > 0, got {self.metres_per_unit}")
+        if not (np.isfinite(self.low) and np.isfinite(self.high)):
+            raise ValueError(f"ActionLayout bounds must be finite, got [{self.low}, {self.high}]")
         if not self.low < self.high or not self.low <= self.gripper_open <= self.high:
             raise ValueError("need low < high and gripper_open within [low, high]")
 
     @property
     def pos_index(self) -> np.ndarray:
         return np.asarray(self.pos, dtype=np.intp)
+
+    def hold(self, last: np.ndarray | None = None) -> np.ndarray:
+        """The safe hold action (A,): what an env executes in place of a non-finite policy action.
+
+        Delta channels hold still with 0; absolute channels (the gripper always; every channel of
+        an absolute layout) repeat `last`, the action this env executed last, or without one
+        (an episode's first step) the gripper opens and other absolute channels take 0 clipped
+        to the bounds.
+        """
+        out = np.zeros(self.dim)
+        absolute = self.absolute_mask
+        if last is not None and np.isfinite(last).all():
+            out[absolute] = np.clip(np.asarray(last, dtype=np.float64)[absolute], self.low, self.high)
+        else:
+            out[absolute] = min(max(0.0, self.low), self.high)
+            if self.gripper is not None:
+                out[self.gripper] = self.gripper_open
+        return out
+
+    @property
+    def absolute_mask(self) -> np.ndarray:
+        """(A,) True on the channels that hold by repeating (see `hold`)."""
+        m = np.full(self.dim, bool(self.absolute))
+        if self.gripper is not None:
+            m[self.gripper] = True
+        return m
 
 
 # robosuite / LIBERO OSC_POSE: [dx, dy, dz, drx, dry, drz, g], 0.05 m per unit, -1 = open.

@@ -5,14 +5,18 @@
     phys      a = (1 - c) a_raw + c a_A                 a_A = PhaseCorrect(a_raw)   (Branch A)
     phys_el   a = (1 - c) a_raw + c a_B                 a_B = w * a_A + (1 - w) * a_raw  (eq. 6)
 
-Contract (do-no-harm):
+Contract (do-no-harm), for every mode:
 - Wrong shapes (action dim, batch size, ndim) are programming errors: ValueError at once.
-- At run time, an env whose correction cannot be computed -- invalid or non-finite state, a
+- Nothing else raises at run time: zero, negative, huge or non-finite values in any state field
+  or action are handled by status codes, never by exceptions (kernels use numpy's error model:
+  a division by zero gives inf / nan, which the finite checks catch).
+- An env whose correction cannot be computed -- invalid or non-finite state, dt <= 0, a
   non-finite policy action, a mass matrix that is not positive definite, a non-finite result --
-  gets the policy's action back unchanged, and the reason is counted in
-  `Corrector.passthrough_counts` (a warning is issued the first time each reason occurs).
-- Every corrected action lies within the layout's [low, high]; an env's own action is only ever
-  returned unchanged or corrected, never made non-finite.
+  is passed through: it gets the policy's own action clipped to the layout's [low, high]; the
+  reason is counted in `passthrough_counts` (warned the first time each occurs).
+- Every emitted action is finite and inside [low, high]. A non-finite policy action is replaced
+  by the layout's safe hold action (`ActionLayout.hold`: 0 on delta channels, the env's last
+  emitted value on absolute ones, the gripper included), counted in `guard_counts` and warned once.
 """
 
 from __future__ import annotations
@@ -30,7 +34,10 @@ from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrections.base import N_MEM, channel_index, params
 from lerobot_physvla.core.dynamics import ELGate, el_gate
 from lerobot_physvla.core.phase import APPROACH
-from lerobot_physvla.core.state import NONFINITE_OUTPUT, OK, REASONS, SINGULAR, PhysState, field_offsets
+from lerobot_physvla.core.state import (
+    GUARD_CLIPPED, GUARD_HELD, GUARDS, INVALID_DT, NONFINITE_OUTPUT, OK, REASONS, SINGULAR, PhysState, field_offsets,
+    n_joints_from_size,
+)
 
 
 
@@ -69,9 +76,10 @@ class StepDiagnostics:
         return self.status != OK
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _blend(a_raw, a_cand, phase, status, cap, grip, gripper_open, veto, low, high):
-    """Eq. 2 with the gripper rule, clipping, and pass-through of every env whose status is not OK."""
+    """Eq. 2 with the gripper rule and clipping for every env whose status is OK; an env whose
+    result is not finite gets status NONFINITE_OUTPUT. Rows of other envs are left for `_guard`."""
     out = np.empty_like(a_raw)
     dev = np.zeros(a_raw.shape[0])
     for i in range(a_raw.shape[0]):
@@ -89,8 +97,45 @@ def _blend(a_raw, a_cand, phase, status, cap, grip, gripper_open, veto, low, hig
                 continue
             status[i] = NONFINITE_OUTPUT
             dev[i] = 0.0
-        out[i] = a_raw[i]
     return out, dev
+
+
+@njit(cache=True, error_model="numpy")
+def _guard(out, a_raw, status, every, absolute, hold0, low, high, last, has_last, commit):
+    """The safety net on emitted actions (see the module's contract), in place on out (B, A).
+
+    Rows with status != OK (every row if `every`) get a_raw clipped to [low, high] if it is
+    finite, else the hold action: 0 where absolute[k] is False, else last[i, k] (or hold0[k]
+    before this env emitted anything). On commit, out becomes the env's `last`.
+    Returns (B,) int8 GUARD_* codes.
+    """
+    b, a_dim = out.shape
+    guard = np.zeros(b, np.int8)
+    for i in range(b):
+        if every or status[i] != OK:
+            finite = True
+            for k in range(a_dim):
+                if not np.isfinite(a_raw[i, k]):
+                    finite = False
+                    break
+            if finite:
+                for k in range(a_dim):
+                    v = min(max(a_raw[i, k], low), high)
+                    if v != a_raw[i, k]:
+                        guard[i] = GUARD_CLIPPED
+                    out[i, k] = v
+            else:
+                guard[i] = GUARD_HELD
+                for k in range(a_dim):
+                    if absolute[k]:
+                        out[i, k] = last[i, k] if has_last[i] else hold0[k]
+                    else:
+                        out[i, k] = 0.0
+        if commit:
+            for k in range(a_dim):
+                last[i, k] = out[i, k]
+            has_last[i] = True
+    return guard
 
 
 class Corrector:
@@ -99,36 +144,75 @@ class Corrector:
     Attributes:
         cfg: the configuration (mode and every hyperparameter).
         batch_size: number of envs B.
-        last: StepDiagnostics of the latest call.
-        passthrough_counts: Counter of reasons (REASONS) an env's action was passed through unchanged.
+        last: StepDiagnostics of the latest call (built only when read).
+        passthrough_counts: Counter of reasons (REASONS) an env's action was passed through (clipped).
+        guard_counts: Counter of what the safety net did (GUARDS): clipped_to_bounds,
+            held_nonfinite_action.
         steps: number of env-steps seen (B per call; a chunk counts once).
     """
 
-    def __init__(self, cfg: PhysVLAConfig | None = None, batch_size: int = 1):
+    def __init__(self, cfg: PhysVLAConfig | None = None, batch_size: int = 1, warmup: bool = True):
         self.cfg = cfg if cfg is not None else PhysVLAConfig()
         self.cfg.validate()
         lay = self.layout = self.cfg.action_layout
         self.batch_size = b = int(batch_size)
         self.branch_b = ELGate(self.cfg) if self.cfg.mode == "phys_el" and self.cfg.el_mode != "off" else None
         self.passthrough_counts: Counter = Counter()
+        self.guard_counts: Counter = Counter()
         self.steps = 0
-        self.last: StepDiagnostics | None = None
         self._pos = lay.pos_index
         self._grip = -1 if lay.gripper is None else lay.gripper
         self._idx = channel_index(lay)
         self._p_a = params(self.cfg, lay)
         self._mem = np.zeros((b, N_MEM))  # per-env memory of the corrections (EMA), corrections/base.py
+        self._absolute = lay.absolute_mask
+        self._hold0 = lay.hold()
+        self._last_out = np.zeros((b, lay.dim))  # the action each env emitted last (the hold of absolute channels)
+        self._has_last = np.zeros(b, np.bool_)
         self._offsets: dict[int, np.ndarray] = {}
         self._warned: set[str] = set()
+        self._diag = None  # raw material of `last`, built into StepDiagnostics on access
+        self._t_total = 0.0
+        if warmup and self._warm_key() not in Corrector._warm:
+            self.warm_up()
+
+    _warm: set = set()  # configurations whose kernels this process has already run
+
+    def _warm_key(self):
+        c = self.cfg
+        return c.mode, c.el_mode, c.weighting, c.gripper_rule, c.chunk
+
+    def warm_up(self) -> None:
+        """Run every kernel of this mode once on a synthetic state and forget it, so that no
+        compilation or cache load happens inside a control tick. Types do not depend on the
+        joint count, so one run covers every arm."""
+        n = self.layout.dim if self.cfg.weighting == "joint_diag" else 7
+        st = PhysState.empty(self.batch_size, n)
+        st.valid[:], st.dt[:], st.M[:] = 1.0, 0.05, np.eye(n)
+        st.J_pos[:, :, :3] = np.eye(3)
+        a = np.zeros((self.batch_size, self.layout.dim))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            self(a, st)
+            self(a[:, None], st)
+            self.passthrough(a, "warm_up")
+        self.passthrough_counts.clear()
+        self.guard_counts.clear()
+        self._warned.clear()
+        self.steps = 0
+        self._diag = None
+        self.reset()
+        Corrector._warm.add(self._warm_key())
 
     def reset(self, env_ids=None) -> None:
-        """Forget per-env memory (EMAs) for env_ids (all envs if None), e.g. at an episode start."""
+        """Forget per-env memory (EMAs, last action) for env_ids (all if None), e.g. at an episode start."""
         sel = slice(None) if env_ids is None else np.asarray(env_ids)
         self._mem[sel] = 0.0
+        self._has_last[sel] = False
 
     # ------------------------------------------------------------------ API boundary
-    def _check(self, actions, state: PhysState) -> np.ndarray:
-        a = np.asarray(actions, dtype=np.float64)
+    def _check(self, actions) -> np.ndarray:
+        a = np.ascontiguousarray(actions, dtype=np.float64)
         if a.ndim not in (2, 3):
             raise ValueError(f"physvla: actions must be (B, A) or (B, T, A), got shape {a.shape}")
         if a.shape[0] != self.batch_size or a.shape[-1] != self.layout.dim:
@@ -136,27 +220,73 @@ class Corrector:
                 f"physvla: actions of shape {a.shape} do not match batch_size={self.batch_size} and the "
                 f"action layout's dim={self.layout.dim}; set PhysVLAConfig.layout to the env's action layout"
             )
-        if state.batch_size != self.batch_size:
-            raise ValueError(f"physvla: state holds {state.batch_size} envs, corrector has {self.batch_size}")
-        if self.branch_b is not None:
-            self.branch_b.check_arm(state.n_joints)
         return a
 
     def __call__(self, actions, state: PhysState) -> np.ndarray:
         """Corrected actions, same shape as `actions` ((B, A) or (B, T, A)), float64."""
         t0 = time.perf_counter()
-        a = self._check(actions, state)
+        a = self._check(actions)
+        if state.batch_size != self.batch_size:
+            raise ValueError(f"physvla: state holds {state.batch_size} envs, corrector has {self.batch_size}")
+        return self._correct(a, state.pack(), t0)
+
+    def correct_packed(self, actions, flat: np.ndarray) -> np.ndarray:
+        """As `__call__`, with the states already packed: flat (B, packed_size(n)) float64."""
+        t0 = time.perf_counter()
+        return self._correct(self._check(actions), flat, t0)
+
+    def _correct(self, a: np.ndarray, flat: np.ndarray, t0: float) -> np.ndarray:
+        if flat.ndim != 2 or flat.shape[0] != self.batch_size:
+            raise ValueError(f"physvla: packed state of shape {flat.shape}, corrector has {self.batch_size} envs")
+        n = n_joints_from_size(flat.shape[1])
+        if self.branch_b is not None:
+            self.branch_b.check_arm(n)
+        if flat.dtype != np.float64 or not flat.flags.c_contiguous:
+            flat = np.ascontiguousarray(flat, dtype=np.float64)
         self.steps += self.batch_size
-        flat = state.pack()
-        n = state.n_joints
         if a.ndim == 2:
             out = self._step(a, flat, n, commit=True)
         else:
-            out = a.copy()
-            for t in range(a.shape[1] if self.cfg.chunk == "all" else 1):
-                out[:, t] = self._step(np.ascontiguousarray(a[:, t]), flat, n, commit=(t == 0))
-        self.last.t_total_s = time.perf_counter() - t0
+            out = np.empty_like(a)
+            n_corrected = a.shape[1] if self.cfg.chunk == "all" else 1
+            for t in range(a.shape[1]):
+                at = np.ascontiguousarray(a[:, t])
+                if t < n_corrected:
+                    out[:, t] = self._step(at, flat, n, commit=(t == 0))
+                else:  # chunk="first": later steps pass through, still inside the safety net
+                    o = at.copy()
+                    self._guarded(o, at, np.zeros(self.batch_size, np.int8), True, False)
+                    out[:, t] = o
+        self._t_total = time.perf_counter() - t0
         return out
+
+    def passthrough(self, actions, reason: str) -> np.ndarray:
+        """The actions passed through (clipped, non-finite ones held) for a reason the caller knows
+        (e.g. no state reached it); counted in passthrough_counts under `reason`, not warned."""
+        a = self._check(actions)
+        out = a.copy()
+        steps = [a] if a.ndim == 2 else [np.ascontiguousarray(a[:, t]) for t in range(a.shape[1])]
+        for t, at in enumerate(steps):
+            o = at.copy()
+            self._guarded(o, at, np.zeros(self.batch_size, np.int8), True, t == 0)
+            if a.ndim == 2:
+                out = o
+            else:
+                out[:, t] = o
+        self.passthrough_counts[reason] += self.batch_size  # the caller, who knows why, warns
+        return out
+
+    @property
+    def last(self) -> StepDiagnostics | None:
+        """StepDiagnostics of the latest call (None before the first)."""
+        if self._diag is None:
+            return None
+        if not isinstance(self._diag, StepDiagnostics):
+            phase, geo, r_diag, weights, dev, status, ta, tb = self._diag
+            self._diag = StepDiagnostics(phase, geo[:, 0], geo[:, 1], geo[:, 2], r_diag[:, 0], r_diag[:, 1], weights,
+                                         dev, status, ta, tb)
+        self._diag.t_total_s = self._t_total
+        return self._diag
 
     # ------------------------------------------------------------------ one step
     def _phase_offsets(self, n: int) -> np.ndarray:
@@ -164,6 +294,19 @@ class Corrector:
             f = field_offsets(n)
             self._offsets[n] = np.array([f[k] for k in ("valid", "eef_pos", "obj_pos", "obj_rest_z", "target_pos")])
         return self._offsets[n]
+
+    def _guarded(self, out, a_raw, status, every: bool, commit: bool) -> None:
+        lay = self.layout
+        guard = _guard(out, a_raw, status, every, self._absolute, self._hold0, lay.low, lay.high, self._last_out,
+                       self._has_last, commit)
+        if guard.any():
+            for code in (GUARD_CLIPPED, GUARD_HELD):
+                k = int((guard == code).sum())
+                if k:
+                    self.guard_counts[GUARDS[code]] += k
+            if (guard == GUARD_HELD).any():
+                self._warn_once("held", "physvla: the policy emitted a non-finite action; the env executes the "
+                                "layout's hold action instead (0 deltas, last gripper command); see guard_counts")
 
     def _step(self, a_raw: np.ndarray, flat: np.ndarray, n: int, commit: bool) -> np.ndarray:
         """One control step for all envs. Only the committed step (a chunk's first) updates memory
@@ -177,36 +320,36 @@ class Corrector:
         )
         t1 = time.perf_counter()
         weights, r_diag = np.zeros_like(a_raw), np.full((self.batch_size, 2), np.nan)
-        if cfg.mode == "baseline":  # identity; phase and geometry above are kept for diagnostics
+        baseline = cfg.mode == "baseline"
+        if baseline:  # identity inside the safety net; phase and geometry above are kept for diagnostics
             status[:] = OK
             out, dev = a_raw.copy(), np.zeros(self.batch_size)
         else:
             if self.branch_b is not None:
                 g = self.branch_b
                 a_phys, weights, r_diag = el_gate(
-                    a_raw, a_phys, flat, g.offsets(n), n, self._pos, g.params, g.flags, status, SINGULAR
+                    a_raw, a_phys, flat, g.offsets(n), n, self._pos, g.params, g.flags, status, SINGULAR, INVALID_DT
                 )
             cap = 1.0 if temporal else cfg.cap  # the temporal baseline is applied in full
             veto = cfg.gripper_rule == "veto" and not temporal
             out, dev = _blend(a_raw, a_phys, phase, status, cap, self._grip, lay.gripper_open, veto, lay.low, lay.high)
+        self._guarded(out, a_raw, status, baseline, commit)
         t2 = time.perf_counter()
         if commit:
             if status.any():
                 self._count(status)
                 phase[status != OK] = -1
-            self.last = StepDiagnostics(
-                phase, geo[:, 0], geo[:, 1], geo[:, 2], r_diag[:, 0], r_diag[:, 1], weights, dev, status,
-                t1 - t0, t2 - t1,
-            )
+            self._diag = (phase, geo, r_diag, weights, dev, status, t1 - t0, t2 - t1)
         return out
+
+    def _warn_once(self, key: str, message: str) -> None:
+        if key not in self._warned:
+            self._warned.add(key)
+            warnings.warn(message, RuntimeWarning, stacklevel=5)
 
     def _count(self, status: np.ndarray) -> None:
         for code in np.unique(status[status != OK]):
             why = REASONS[code]
             self.passthrough_counts[why] += int((status == code).sum())
-            if why not in self._warned:
-                self._warned.add(why)
-                warnings.warn(
-                    f"physvla: passing the policy's action through unchanged ({why}); see Corrector.passthrough_counts",
-                    RuntimeWarning, stacklevel=4,
-                )
+            self._warn_once(why, f"physvla: passing the policy's action through ({why}, clipped to the action "
+                            "bounds); see Corrector.passthrough_counts")

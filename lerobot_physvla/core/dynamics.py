@@ -32,7 +32,7 @@ JOINT_DIAG, TASK_SPACE = 0, 1
 
 
 # ---------------------------------------------------------------- per-env arithmetic (numba)
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _sym3_inverse(a, inv):
     """Inverse of a symmetric 3x3 matrix by cofactors; returns the determinant."""
     c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
@@ -48,7 +48,7 @@ def _sym3_inverse(a, inv):
     return det
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _j_times(J, X, a):
     """a (3, 3) = J (3, n) @ X (n, 3)."""
     for r in range(3):
@@ -59,7 +59,7 @@ def _j_times(J, X, a):
             a[r, c] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def qddot_row(J, qdot, v, dt, damping, out):
     """qddot = (J^T (J J^T + lambda^2 I)^-1 v - qdot) / dt for one env; v in m/s, out (n,) rad/s^2."""
     n = qdot.shape[0]
@@ -76,7 +76,7 @@ def qddot_row(J, qdot, v, dt, damping, out):
         out[k] = (J[0, k] * y0 + J[1, k] * y1 + J[2, k] * y2 - qdot[k]) / dt
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def residual_row(M, qdd, bias, tau, out):
     """r_EL = M qddot + bias - tau for one env, N m (eq. 4)."""
     n = qdd.shape[0]
@@ -87,13 +87,13 @@ def residual_row(M, qdd, bias, tau, out):
         out[r] = acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rho(r, eps, r0):
     """rho(r) = clip((r - eps) / (r0 - eps), 0, 1): the gate of eq. 5, r in N m."""
     return min(max((r - eps) / (r0 - eps), 0.0), 1.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def softmax_inverse_row(x, out):
     """softmax(1 / x) (eq. 5's weighting of inertias), numerically stable."""
     m = -np.inf
@@ -107,7 +107,7 @@ def softmax_inverse_row(x, out):
         out[k] /= s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def task_space_diag_row(M, J, out):
     """diag(Lambda), Lambda = (J M^-1 J^T)^-1, the end-effector's translational inertia (kg).
 
@@ -150,15 +150,18 @@ def task_space_diag_row(M, J, out):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def el_gate_row(a_raw, a_phys, row, o, n, pos, p, flags, a_out, w, diag):
-    """Branch B for one env reading its packed state row; returns False if M is not usable.
+    """Branch B for one env reading its packed state row; 0 if it ran, 1 if M is not usable, 2 if
+    dt is not a positive finite number (then a_out and w are untouched).
 
     o: offsets [dt, qdot, M, bias, tau, J_pos] into row; p: [metres_per_unit, damping, eps, r0];
     flags: [el_mode (SOFT/GATED), weighting (JOINT_DIAG/TASK_SPACE)];
     diag (2,) receives [|r_EL| (N m), work-energy residual (W)].
     """
     dt = row[o[0]]
+    if not (dt > 0.0 and dt < np.inf):
+        return 2
     qdot = row[o[1] : o[1] + n]
     M = row[o[2] : o[2] + n * n].reshape((n, n))
     bias = row[o[3] : o[3] + n]
@@ -188,7 +191,7 @@ def el_gate_row(a_raw, a_phys, row, o, n, pos, p, flags, a_out, w, diag):
         for k in range(n):
             d[k] = M[k, k]
             if not d[k] > 0.0:
-                return False
+                return 1
         softmax_inverse_row(d, w)
         for k in range(n):
             w[k] *= g
@@ -196,17 +199,17 @@ def el_gate_row(a_raw, a_phys, row, o, n, pos, p, flags, a_out, w, diag):
     else:
         lam = np.empty(3)
         if not task_space_diag_row(M, J, lam):
-            return False
+            return 1
         ws = np.empty(3)
         softmax_inverse_row(lam, ws)
         for k in range(3):
             w[pos[k]] = g * ws[k]
             a_out[pos[k]] = w[pos[k]] * a_phys[pos[k]] + (1.0 - w[pos[k]]) * a_raw[pos[k]]
-    return True
+    return 0
 
 
 # ---------------------------------------------------------------- batched functions (B envs)
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def proposed_qddot(J_pos, qdot, v_des, dt, damping):
     """(B, n) joint accelerations implied by end-effector velocities v_des (B, 3) in m/s."""
     out = np.empty_like(qdot)
@@ -215,7 +218,7 @@ def proposed_qddot(J_pos, qdot, v_des, dt, damping):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def el_residual(M, qddot, bias, tau):
     """r_EL = M qddot + bias - tau, (B, n) in N m  (eq. 4)."""
     out = np.empty_like(qddot)
@@ -229,7 +232,7 @@ def gate(r_norm: np.ndarray, eps: float, r0: float) -> np.ndarray:
     return np.array([rho(float(r), eps, r0) for r in np.atleast_1d(r_norm)])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def joint_diag_weights(M):
     """softmax(1 / diag(M)) over the arm joints, (B, n)  (eq. 5)."""
     b, n = M.shape[0], M.shape[1]
@@ -239,7 +242,7 @@ def joint_diag_weights(M):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def task_space_weights(M, J_pos):
     """softmax(1 / diag(Lambda)) over x, y, z with Lambda = (J M^-1 J^T)^-1, (B, 3).
 
@@ -253,9 +256,10 @@ def task_space_weights(M, J_pos):
     return out
 
 
-@njit(cache=True)
-def el_gate(a_raw, a_phys, flat, o, n, pos, p, flags, status, singular):
-    """Branch B over B envs; runs where status == 0, sets status = singular where M is unusable.
+@njit(cache=True, error_model="numpy")
+def el_gate(a_raw, a_phys, flat, o, n, pos, p, flags, status, singular, invalid_dt):
+    """Branch B over B envs; runs where status == 0, sets status = singular where M is unusable
+    and invalid_dt where dt is not positive and finite.
 
     Returns (a_B (B, A), weights (B, A), diag (B, 2) [|r_EL| N m, r_energy W]).
     """
@@ -265,8 +269,11 @@ def el_gate(a_raw, a_phys, flat, o, n, pos, p, flags, status, singular):
     diag = np.full((b, 2), np.nan)
     for i in range(b):
         if status[i] == 0:
-            if not el_gate_row(a_raw[i], a_phys[i], flat[i], o, n, pos, p, flags, out[i], w[i], diag[i]):
+            code = el_gate_row(a_raw[i], a_phys[i], flat[i], o, n, pos, p, flags, out[i], w[i], diag[i])
+            if code == 1:
                 status[i] = singular
+            elif code == 2:
+                status[i] = invalid_dt
     return out, w, diag
 
 
@@ -312,7 +319,7 @@ class ELGate:
         n = state.n_joints
         self.check_arm(n)
         status = np.zeros(a_raw.shape[0], np.int8)
-        a, w, diag = el_gate(a_raw, a_phys, state.pack(), self.offsets(n), n, self.pos, self.params, self.flags, status, 1)
+        a, w, diag = el_gate(a_raw, a_phys, state.pack(), self.offsets(n), n, self.pos, self.params, self.flags, status, 1, 2)
         return a, diag[:, 0], diag[:, 1], w, status == 0
 
 

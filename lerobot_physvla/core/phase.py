@@ -33,7 +33,7 @@ class Phase(IntEnum):
 PHASE_NAMES = tuple(p.name.lower() for p in Phase)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def phase_of(d_obj_xy: float, d_tgt_xy: float, lift_m: float, delta_grasp_m: float, h_lift_m: float) -> int:
     """Eq. 3 for one env.
 
@@ -46,7 +46,7 @@ def phase_of(d_obj_xy: float, d_tgt_xy: float, lift_m: float, delta_grasp_m: flo
     return APPROACH if d_obj_xy >= delta_grasp_m else GRASP
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def detect_phase(d_obj_xy, d_tgt_xy, lift_m, delta_grasp_m, h_lift_m):
     """Phase per env (eq. 3), int8 values of `Phase`, for (B,) distances and lifts in metres."""
     out = np.empty(d_obj_xy.shape[0], np.int8)
@@ -55,7 +55,7 @@ def detect_phase(d_obj_xy, d_tgt_xy, lift_m, delta_grasp_m, h_lift_m):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def xy_distance(a, b):
     """Horizontal distance between (B, 3) points, metres."""
     out = np.empty(a.shape[0])

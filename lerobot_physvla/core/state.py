@@ -13,8 +13,12 @@ from dataclasses import dataclass
 import numpy as np
 
 # Why the corrector passed an env's action through unchanged (status codes of its kernels).
-REASONS = ("ok", "invalid_state", "nonfinite_state", "nonfinite_action", "singular_dynamics", "nonfinite_output")
-OK, INVALID_STATE, NONFINITE_STATE, NONFINITE_ACTION, SINGULAR, NONFINITE_OUTPUT = range(6)
+REASONS = ("ok", "invalid_state", "nonfinite_state", "nonfinite_action", "singular_dynamics", "nonfinite_output",
+           "invalid_dt")
+OK, INVALID_STATE, NONFINITE_STATE, NONFINITE_ACTION, SINGULAR, NONFINITE_OUTPUT, INVALID_DT = range(7)
+# What the safety net did to an emitted action (Corrector.guard_counts).
+GUARDS = ("none", "clipped_to_bounds", "held_nonfinite_action")
+GUARD_NONE, GUARD_CLIPPED, GUARD_HELD = range(3)
 
 # Fields in packing order: (name, shape given the arm's joint count n).
 _FIELDS = (

@@ -14,6 +14,7 @@ state-based policies have the scene. The env processors put `PhysVLAStateCapture
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from functools import partial
 
@@ -44,12 +45,14 @@ class PhysVLAStateExport(gym.Wrapper):
     Attributes:
         cameras: False builds LIBERO with no renderer and returns no pixels.
         task_id: the LIBERO task id (exported in physvla_extra).
+        read_failures: state reads that raised (those steps export an invalid state: no correction).
     """
 
     def __init__(self, env, cameras: bool = True):
         super().__init__(env)
         self.cameras = cameras
         self.source = None
+        self.read_failures = 0  # reads of the state source that raised (those rows export valid = 0)
         self._last_action = np.zeros(7)
         inner = env.unwrapped
         self.task_id = int(getattr(inner, "task_id", -1))
@@ -81,7 +84,17 @@ class PhysVLAStateExport(gym.Wrapper):
         obs = dict(obs)
         if not self.cameras:
             obs.pop("pixels", None)
-        row = self.source.read_packed() if self.source is not None else np.zeros(packed_size(N_JOINTS))
+        row = None
+        if self.source is not None:
+            try:
+                row = self.source.read_packed()
+            except Exception as err:  # noqa: BLE001 - do-no-harm: an unreadable state turns correction off
+                self.read_failures += 1
+                if self.read_failures == 1:
+                    warnings.warn(f"physvla: the state source failed ({err!r}); the corrector passes actions "
+                                  "through while it does", RuntimeWarning, stacklevel=2)
+        if row is None or row.shape != (packed_size(N_JOINTS),):
+            row = np.zeros(packed_size(N_JOINTS))  # valid = 0: the corrector passes through
         rs = dict(obs.get("robot_state", {}))
         rs[STATE_KEY] = row
         rs[EXTRA_KEY] = np.concatenate([[self.task_id, float(success)], self._last_action])

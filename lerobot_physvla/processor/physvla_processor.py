@@ -27,7 +27,7 @@ from lerobot.utils.constants import OBS_PREFIX
 
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
-from lerobot_physvla.core.state import PhysState
+from lerobot_physvla.core.state import PhysState, field_offsets, n_joints_from_size
 
 STATE_KEY = "physvla_state"  # inside robot_state: the packed PhysState row (L,)
 EXTRA_KEY = "physvla_extra"  # inside robot_state: [task_id, is_success, last executed action (A)]
@@ -64,9 +64,21 @@ def get_bus(name: str = "default") -> StateBus:
 
 def _to_numpy(x) -> np.ndarray:
     if isinstance(x, torch.Tensor):
-        x = x.detach().to("cpu")
-        return x.double().numpy() if x.dtype != torch.float64 else x.numpy()
+        x = x.detach()
+        if x.device.type != "cpu":
+            x = x.cpu()
+        return x.numpy() if x.dtype == torch.float64 else x.double().numpy()
     return np.asarray(x, dtype=np.float64)
+
+
+def _episode_step(flat: np.ndarray) -> np.ndarray:
+    """(B,) episode_step column of (B, L) packed states (no unpacking)."""
+    return flat[:, field_offsets(n_joints_from_size(flat.shape[1]))["episode_step"]].copy()
+
+
+def _safe_any_shape(a: np.ndarray, low: float, high: float) -> np.ndarray:
+    """Last resort for actions the layout does not fit: non-finite -> 0, clipped to [low, high]."""
+    return np.clip(np.where(np.isfinite(a), a, 0.0), low, high)
 
 
 def _unregister_name_for_saving(cls):
@@ -139,8 +151,10 @@ class PhysVLACorrectorStep(ProcessorStep):
 
     Put it last in the policy postprocessor (after unnormalisation: it works in env units).
     Accepts (B, A) and (B, T, A) actions on any device and returns the same shape, dtype and
-    device. Do-no-harm: with no state on the bus, or a state whose batch does not match, the
-    action passes through unchanged and the reason is counted in `passthrough_counts`.
+    device. Do-no-harm: it never raises; with no state on the bus, a state whose batch does not
+    match, or any error, the action passes through inside the safety net (clipped to the bounds,
+    a non-finite action replaced by the hold action; see core/corrector.py) and the reason is
+    counted in `passthrough_counts` and warned once.
 
     Attributes:
         config: PhysVLAConfig fields (mode and every hyperparameter), JSON-serialisable.
@@ -157,54 +171,76 @@ class PhysVLACorrectorStep(ProcessorStep):
     def __post_init__(self) -> None:
         self.cfg = PhysVLAConfig.from_dict(self.config)  # validates: unknown mode -> ValueError
         self.config = self.cfg.to_dict()
+        # Built (and its kernels compiled / loaded) with the step, never inside the first control tick.
+        self._corrector = Corrector(self.cfg, 1)
+        torch.from_numpy(_to_numpy(torch.zeros(1, self.cfg.action_layout.dim))).to(dtype=torch.float32)
 
     @property
     def corrector(self) -> Corrector | None:
         return self._corrector
 
-    def _pass(self, why: str, fix: str) -> None:
+    def _warn(self, why: str, fix: str) -> None:
         self.passthrough_counts[why] += 1
         if self.passthrough_counts[why] == 1:
-            warnings.warn(f"physvla: passing actions through unchanged ({why}): {fix}", RuntimeWarning, stacklevel=3)
+            warnings.warn(f"physvla: passing actions through ({why}): {fix}", RuntimeWarning, stacklevel=4)
+
+    def _ensure_corrector(self, b: int) -> Corrector:
+        if self._corrector is None or self._corrector.batch_size != b:
+            self._corrector = Corrector(self.cfg, b)
+            self._last_step = None
+        return self._corrector
 
     def __call__(self, transition: EnvTransition) -> EnvTransition:
         action = transition.get(TransitionKey.ACTION)
         if not isinstance(action, torch.Tensor):
             return transition
+        try:
+            out = self._correct(action)
+        except Exception as e:  # noqa: BLE001 - do-no-harm: the corrector never stops a rollout
+            self._warn("corrector_error", f"{type(e).__name__}: {e}")
+            lay = self.cfg.action_layout
+            out = _safe_any_shape(_to_numpy(action), lay.low, lay.high)
+        new = dict(transition)
+        new[TransitionKey.ACTION] = torch.from_numpy(out).to(device=action.device, dtype=action.dtype)
+        return new
+
+    def _correct(self, action: torch.Tensor) -> np.ndarray:
+        """Corrected actions (numpy, float64); every path ends inside the action bounds, finite."""
+        raw = _to_numpy(action)
+        lay = self.cfg.action_layout
+        if raw.ndim not in (2, 3) or raw.shape[-1] != lay.dim:
+            self._warn("action_shape_mismatch", f"actions of shape {tuple(raw.shape)} for the layout's dim "
+                       f"{lay.dim}; set --physvla.layout to the env's action layout")
+            return _safe_any_shape(raw, lay.low, lay.high)
+        b = raw.shape[0]
+        corrector = self._ensure_corrector(b)
         bus = get_bus(self.bus)
         if bus.state is None:
-            self._pass("no_state", "no physical state reached the postprocessor; evaluate with "
-                       "--env.type=libero_physvla (or --policy.postprocess=physvla), or feed "
-                       "observation.physvla_state")
-            return transition
-        state = PhysState.unpack(bus.state)
-        b = action.shape[0]
-        if state.batch_size != b:
-            self._pass("state_batch_mismatch", f"state for {state.batch_size} envs, action for {b}")
-            return transition
-        if self._corrector is None or self._corrector.batch_size != b:
-            self._corrector = Corrector(self.cfg, b)
-            self._last_step = None
+            self._warn("no_state", "no physical state reached the postprocessor; evaluate with "
+                       "--env.type=libero_physvla (or --policy.postprocess=physvla), or feed observation.physvla_state")
+            return corrector.passthrough(raw, "no_state")
+        flat = bus.state
+        if flat.shape[0] != b:
+            self._warn("state_batch_mismatch", f"state for {flat.shape[0]} envs, action for {b}")
+            return corrector.passthrough(raw, "state_batch_mismatch")
         # Episode boundaries: an env whose step counter went back (to 0 at reset) starts afresh.
-        step = state.episode_step.copy()
+        step = _episode_step(flat)
         if self._last_step is not None:
             new_ep = step < self._last_step
             if new_ep.any():
-                self._corrector.reset(np.flatnonzero(new_ep))
+                corrector.reset(np.flatnonzero(new_ep))
         else:
-            self._corrector.reset()
+            corrector.reset()
         self._last_step = step
 
         t0 = time.perf_counter()
-        raw = _to_numpy(action)
-        out = self._corrector(raw, state)
-        corrected = torch.from_numpy(out).to(device=action.device, dtype=action.dtype)
-        t_total = time.perf_counter() - t0
-        for listener in self.listeners:
-            listener(raw, out, state, bus.extra, self._corrector.last, t_total)
-        new = dict(transition)
-        new[TransitionKey.ACTION] = corrected
-        return new
+        out = corrector.correct_packed(raw, flat)
+        if self.listeners:  # per-step recording only when someone listens
+            t_total = time.perf_counter() - t0
+            state = PhysState.unpack(flat)
+            for listener in self.listeners:
+                listener(raw, out, state, bus.extra, corrector.last, t_total)
+        return out
 
     def get_config(self) -> dict[str, Any]:
         return {"config": self.config, "bus": self.bus}

@@ -124,9 +124,10 @@ def test_invalid_state_and_nonfinite_action_pass_through_and_are_counted():
     with pytest.warns(RuntimeWarning, match="passing"):
         out = c(raw, st)
     np.testing.assert_array_equal(out[1], raw[1])
-    assert np.isnan(out[2, 0]) and np.array_equal(out[2, 1:], raw[2, 1:])
+    np.testing.assert_array_equal(out[2], [0, 0, 0, 0, 0, 0, -1])  # the hold action: 0 deltas, gripper open
     assert out[0, 6] != raw[0, 6]  # env 0 is still corrected
     assert c.passthrough_counts == {"invalid_state": 1, "nonfinite_action": 1}
+    assert c.guard_counts == {"held_nonfinite_action": 1}
     assert c.last.passthrough.tolist() == [False, True, True]
 
 
@@ -181,11 +182,13 @@ def test_output_in_bounds_and_deviation_capped(a, eef, obj, tgt, lift, mode, el,
 
 @settings(max_examples=60, deadline=None)
 @given(bad=st_.sampled_from([np.nan, np.inf, -np.inf]), idx=st_.integers(0, 6))
-def test_nonfinite_actions_never_become_corrections(bad, idx):
+def test_nonfinite_actions_become_the_hold_action(bad, idx):
+    c = Corrector(PhysVLAConfig())
+    first = c(RAW, make_state())  # a finite step: its gripper command is what the hold repeats
     raw = RAW.copy()
     raw[0, idx] = bad
-    c = Corrector(PhysVLAConfig())
-    with pytest.warns(RuntimeWarning):
+    with pytest.warns(RuntimeWarning, match="non-finite"):
         out = c(raw, make_state())
-    np.testing.assert_array_equal(out, raw)  # unchanged, NaN included: nothing is invented
-    assert c.passthrough_counts["nonfinite_action"] == 1
+    np.testing.assert_array_equal(out[0, :6], np.zeros(6))  # delta channels hold still
+    assert out[0, 6] == first[0, 6]  # the gripper repeats its last command
+    assert c.passthrough_counts["nonfinite_action"] == 1 and c.guard_counts["held_nonfinite_action"] == 1

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -71,6 +72,31 @@ def test_no_state_passes_through_and_counts():
     with pytest.warns(RuntimeWarning, match="libero_physvla"):
         out = post_pipeline(step)(a)
     assert torch.equal(out, a) and step.passthrough_counts == {"no_state": 1}
+    assert step.corrector.passthrough_counts == {"no_state": 3}
+
+
+@pytest.mark.parametrize("mode", ["baseline", "temporal", "phys", "phys_el"])
+def test_the_step_never_raises_and_emits_only_finite_in_bounds_actions(mode):
+    bus = get_bus(f"garbage-bus-{mode}")
+    step = PhysVLACorrectorStep(config=PhysVLAConfig(mode=mode).to_dict(), bus=f"garbage-bus-{mode}")
+    pipe = post_pipeline(step)
+    bad = torch.tensor([[np.nan, 0.1, 0.1, 0.0, 0.0, 0.0, 1.0], [3.0, -3.0, 0.2, 0.0, 0.0, 0.0, 1.0]])
+    out = pipe(bad)  # no state on the bus yet
+    assert torch.isfinite(out).all() and (out.abs() <= 1).all()
+    st = make_state(batch_size=2)
+    st.dt[:] = 0.0
+    st.M[1] = np.inf
+    bus.publish(st.pack())
+    for action in (bad, bad[:, None].repeat(1, 3, 1), torch.full((2, 7), np.inf), torch.zeros(2, 5)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out = pipe(action)
+        assert out.shape == action.shape and torch.isfinite(out).all() and (out.abs() <= 1).all()
+    assert step.passthrough_counts["action_shape_mismatch"] == 1
+    bus.publish(np.zeros((2, 5)))  # a packed state of a length no arm has
+    with pytest.warns(RuntimeWarning, match="corrector_error"):
+        out = pipe(bad)
+    assert torch.isfinite(out).all() and (out.abs() <= 1).all()
 
 
 def test_chunks_dtype_and_batch_mismatch():

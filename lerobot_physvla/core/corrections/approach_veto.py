@@ -6,7 +6,7 @@ from numba import njit
 from lerobot_physvla.core.corrections.base import GRIPPER, GRIPPER_OPEN
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def approach_veto(a_raw, a_phys, idx, geo, p, mem, commit):
     """gripper <- open (the layout's open value); other channels untouched."""
     if idx[GRIPPER] >= 0:

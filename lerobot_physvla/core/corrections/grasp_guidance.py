@@ -10,7 +10,7 @@ from numba import njit
 from lerobot_physvla.core.corrections.base import BETA, EEF, METRES_PER_UNIT, OBJ, OFFSET_X_M
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit):
     """Position channels blended toward p* with weight beta; gripper and rotation untouched."""
     beta, scale = p[BETA], p[METRES_PER_UNIT]

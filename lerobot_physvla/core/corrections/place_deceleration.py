@@ -8,7 +8,7 @@ from numba import njit
 from lerobot_physvla.core.corrections.base import D_THRESH_M, D_TGT_XY
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def place_deceleration(a_raw, a_phys, idx, geo, p, mem, commit):
     """Position channels scaled down near the target; gripper and rotation untouched."""
     ramp = min(1.0, geo[D_TGT_XY] / p[D_THRESH_M])  # eq. 5

@@ -6,7 +6,7 @@ from numba import njit
 from lerobot_physvla.core.corrections.base import ACTIVE, ALPHA_TEMPORAL, EMA
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def temporal_ema(a_raw, a_phys, idx, geo, p, mem, commit):
     """a_pos <- alpha_temporal a_pos_prev + (1 - alpha_temporal) a_raw_pos; memory updated if commit."""
     alpha = p[ALPHA_TEMPORAL]

@@ -10,7 +10,7 @@ from numba import njit
 from lerobot_physvla.core.corrections.base import ACTIVE, ALPHA_TRANSPORT, EMA, LIFT_BIAS_U
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit):
     """Position channels: EMA of (raw + lift bias on z); memory updated only if commit."""
     alpha, lift_u = p[ALPHA_TRANSPORT], p[LIFT_BIAS_U]
