@@ -57,8 +57,10 @@ def _layout(n_joints: int) -> tuple[tuple[str, int, int, tuple[int, ...]], ...]:
     return tuple(out)
 
 
+@functools.lru_cache(maxsize=None)
 def field_offsets(n_joints: int) -> dict[str, int]:
-    """Start of each field in the packed vector (the kernels read the packed rows directly)."""
+    """Start of each field in the packed vector (the kernels read the packed rows directly); cached,
+    read-only: the step reads it every control tick."""
     out, i = {}, 0
     for name, shape in _FIELDS:
         out[name] = i
