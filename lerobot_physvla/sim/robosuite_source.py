@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from lerobot_physvla.core.dynamics import MujocoDynamicsOracle
-from lerobot_physvla.core.state import PhysState, packed_size
+from lerobot_physvla.core.state import PhysState, field_offsets, packed_size
 
 _GOAL_PREDICATES = ("on", "in")
 
@@ -70,6 +70,12 @@ class RobosuiteStateSource:
         self.episode_step = 0
         self._row = np.zeros(packed_size(self.oracle.n_joints))
         self.failures: Counter = Counter()  # exception type -> count of failed reads
+        f = self._f = field_offsets(self.oracle.n_joints)
+        kind = {"body": 0, "site": 1}
+        points = [self.oracle._eef_point[0], [f["obj_pos"], kind[self._obj[0]], self._obj[1]]]
+        if self._tgt is not None:
+            points.append([f["target_pos"], kind[self._tgt[0]], self._tgt[1]])
+        self._points = np.array(points, dtype=np.intp)  # positions the compiled read copies
 
     def _resolve(self, name: str) -> tuple[str, int]:
         """('body'|'site', id) of a LIBERO object/fixture/region name or a raw MuJoCo body/site name."""
@@ -107,31 +113,31 @@ class RobosuiteStateSource:
         self.episode_step += 1
 
     def read_packed(self) -> np.ndarray:
-        """One env's state as a flat float64 vector (PhysState.pack layout). Never raises:
-        a failed read returns a row with valid = 0 (the corrector then passes actions through)."""
-        row = self._row
+        """One env's state as a flat float64 vector (PhysState.pack layout), a new array. Never
+        raises: a failed read returns a row with valid = 0 (the corrector then passes actions through).
+
+        Read from the live MjData as the simulator left it (`MujocoDynamicsOracle.read_live_into`:
+        positions, M, bias and tau one 2 ms physics substep older than q and qdot), in one
+        compiled call; nothing is recomputed and the simulation is never written.
+        """
+        row, f = self._row, self._f
         try:
-            dyn = self.oracle.read(self.env.sim.data._data)
-            data = self.oracle._scratch
-            fingers = data.qpos[self._finger_qpos]
-            st = PhysState(
-                valid=np.array([np.isfinite(self.obj_rest_z)]),
-                episode_step=np.array([self.episode_step]),
-                dt=np.array([self.dt]),
-                eef_pos=self.oracle.eef_pos()[None],
-                gripper=np.array([np.abs(fingers).sum()]),
-                obj_pos=self._pos(data, self._obj)[None],
-                obj_rest_z=np.array([self.obj_rest_z]),
-                target_pos=(self._pos(data, self._tgt) if self.target_xyz is None else self.target_xyz)[None],
-                **{k: v[None] for k, v in dyn.items()},
-            )
-            row = st.pack()[0]
+            data = self.env.sim.data._data
+            self.oracle.read_live_into(data, row, self._points)
+            qpos = self.oracle._live[1][0]
+            row[f["valid"]] = 1.0 if np.isfinite(self.obj_rest_z) else 0.0
+            row[f["episode_step"]] = self.episode_step
+            row[f["dt"]] = self.dt
+            row[f["gripper"]] = sum(abs(float(qpos[i])) for i in self._finger_qpos)  # finger opening, m
+            row[f["obj_rest_z"]] = self.obj_rest_z
+            if self.target_xyz is not None:  # a fixed world point overrides the target body
+                row[f["target_pos"] : f["target_pos"] + 3] = self.target_xyz
+            return row.copy()
         except Exception as e:  # noqa: BLE001 - do-no-harm: an unreadable state disables correction
             self.failures[type(e).__name__] += 1
             if sum(self.failures.values()) == 1:
                 warnings.warn(f"physvla: reading the sim state failed ({e!r}); correction is off for this step", RuntimeWarning)
-            row = np.zeros_like(self._row)
-        return row
+            return np.zeros_like(self._row)
 
     def read(self) -> PhysState:
         return PhysState.unpack(self.read_packed())

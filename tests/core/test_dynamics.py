@@ -28,13 +28,13 @@ def panda(libero_task0):
 
 def test_mass_matrix_is_spd_and_the_simulators_own(panda):
     env, src = panda
+    m, d = src.model, env.env.sim.data._data
+    mujoco.mj_forward(m, d)
     st = src.read()
     M = st.M[0]
     np.testing.assert_allclose(M, M.T, atol=1e-12)
     assert np.linalg.eigvalsh(M).min() > 0
     # independent check: M v via mj_mulM on the live data (arm dofs only) equals M_arm v
-    m, d = src.model, env.env.sim.data._data
-    mujoco.mj_forward(m, d)
     v = np.zeros(m.nv)
     v[src.oracle.dof_ids] = np.arange(1.0, 8.0)
     res = np.zeros(m.nv)
@@ -140,3 +140,43 @@ def test_work_energy_residual_is_power_of_the_el_residual():
     r, _ = g.residual(a[:, :3], st)
     assert r_energy[0] == pytest.approx(abs(st.qdot[0] @ r[0]))
     assert r_norm[0] == pytest.approx(np.linalg.norm(r[0]))
+
+
+_TREE = """
+<mujoco>
+  <worldbody>
+    <body name="base"><joint name="slide" type="slide" axis="1 0 0"/><geom size=".1" mass="2"/>
+      <body name="l1" pos="0 .2 0"><joint name="l1" axis="0 0 1"/><geom size=".05" pos=".1 0 0" mass="1"/>
+        <body name="l2" pos=".2 0 0"><joint name="l2" axis="0 1 0"/><geom size=".04" pos=".1 0 0" mass=".5"/>
+          <site name="tip" pos=".2 0 0"/></body></body>
+      <body name="r1" pos="0 -.2 0"><joint name="r1" axis="0 0 1"/><geom size=".05" pos=".1 0 0" mass="1"/></body>
+    </body>
+    <body name="box" pos="1 0 0"><freejoint/><geom size=".03" mass=".1"/></body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.mark.parametrize("joints", [["slide", "l1", "l2"], ["l2", "r1", "l1"], ["r1", "l2"]])
+def test_compiled_live_read_equals_mj_fullM_on_a_branching_tree(joints):
+    """Arm dofs in any order, on separate branches (uncoupled, M = 0 there), after a free body."""
+    m = mujoco.MjModel.from_xml_string(_TREE)
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(0)
+    d.qpos[:] = rng.normal(size=m.nq)
+    d.qpos[-4:] /= np.linalg.norm(d.qpos[-4:])
+    d.qvel[:] = rng.normal(size=m.nv)
+    d.ctrl[:] = 0
+    mujoco.mj_forward(m, d)
+    from lerobot_physvla.core.dynamics import MujocoDynamicsOracle
+    from lerobot_physvla.core.state import PhysState, packed_size
+
+    oracle = MujocoDynamicsOracle(m, joints, eef_site="tip")
+    row = np.full(packed_size(len(joints)), np.nan)
+    oracle.read_live_into(d, row)
+    st = PhysState.unpack(row)
+    for name, value in oracle.read(d).items():
+        np.testing.assert_allclose(getattr(st, name)[0], value, atol=1e-12, err_msg=name)
+    np.testing.assert_allclose(st.eef_pos[0], d.site_xpos[0], atol=1e-12)
+    if "r1" in joints and "l2" in joints:
+        assert st.M[0][joints.index("r1"), joints.index("l2")] == 0.0

@@ -28,22 +28,46 @@ def test_unknown_names_list_what_exists(libero_task0):
     assert "red_mug_7" in str(e.value)
 
 
-def test_state_matches_the_simulator(libero_task0):
+def test_state_is_the_simulators_own(libero_task0):
     task, env = libero_task0
     libero_sim.reset_to_init_state(env, task, 0)
     src = RobosuiteStateSource(env.env)
     src.reset()
-    st = src.read()
+    for _ in range(3):  # moving, so that one physics substep makes a difference
+        env.step(np.array([0.5, 0.3, -0.4, 0, 0, 0, -1.0]))
+        src.step()
     inner = env.env
-    d = copy.copy(inner.sim.data._data)  # the source reads the current state, forwarded
-    mujoco.mj_forward(inner.sim.model._model, d)
-    assert st.valid[0] and st.dt[0] == pytest.approx(0.05) and st.episode_step[0] == 0
-    np.testing.assert_allclose(st.obj_pos[0], d.xpos[inner.obj_body_id["akita_black_bowl_1"]], atol=1e-9)
-    np.testing.assert_allclose(st.target_pos[0], d.xpos[inner.obj_body_id["plate_1"]], atol=1e-9)
-    np.testing.assert_allclose(st.eef_pos[0], d.site_xpos[inner.robots[0].eef_site_id], atol=1e-9)
-    assert st.obj_rest_z[0] == pytest.approx(st.obj_pos[0, 2])
+    m, d = inner.sim.model._model, inner.sim.data._data
+    st = src.read()  # the live data as robosuite's last substep left it
+    bowl, plate = inner.obj_body_id["akita_black_bowl_1"], inner.obj_body_id["plate_1"]
+    assert st.valid[0] and st.dt[0] == pytest.approx(0.05) and st.episode_step[0] == 3
+    np.testing.assert_array_equal(st.obj_pos[0], d.xpos[bowl])
+    np.testing.assert_array_equal(st.target_pos[0], d.xpos[plate])
+    np.testing.assert_array_equal(st.eef_pos[0], d.site_xpos[inner.robots[0].eef_site_id])
     assert st.n_joints == 7 and np.linalg.matrix_rank(st.J_pos[0]) == 3
     assert 0.0 <= st.gripper[0] < 0.1  # finger opening, m
+    # positions are one 2 ms substep older than q: within a millimetre of the forwarded state
+    fwd = copy.copy(d)
+    mujoco.mj_forward(m, fwd)
+    lag = np.abs(st.eef_pos[0] - fwd.site_xpos[inner.robots[0].eef_site_id]).max()
+    assert 0.0 < lag < 1e-3
+    # forwarded (as robosuite does before every substep), the compiled read equals the recomputing one
+    mujoco.mj_forward(m, d)
+    st = src.read()
+    for name, value in src.oracle.read(d).items():
+        np.testing.assert_allclose(getattr(st, name)[0], value, atol=1e-9, err_msg=name)
+    np.testing.assert_allclose(st.eef_pos[0], src.oracle.eef_pos(), atol=1e-12)
+    src.reset()
+    assert src.read().obj_rest_z[0] == pytest.approx(d.xpos[bowl][2])
+
+
+def test_a_fixed_target_point_overrides_the_target_body(libero_task0):
+    _, env = libero_task0
+    src = RobosuiteStateSource(env.env)
+    src.reset()
+    src.target_xyz = np.array([0.1, -0.2, 1.3])
+    np.testing.assert_array_equal(src.read().target_pos[0], [0.1, -0.2, 1.3])
+    assert src.read_packed() is not src.read_packed()  # every read is a new array
 
 
 def test_short_scripted_episode_through_phys_el(libero_task0):
