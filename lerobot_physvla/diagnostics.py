@@ -4,7 +4,9 @@
 splits the stream into episodes per env with the state's own step counter. For each episode it
 keeps the raw and corrected actions, the action the simulator actually executed (echoed back by
 the env one step later), the phase timeline, residuals, pass-through reasons and timings, and
-computes the metrics of `metrics.py`. `write(dir)` saves
+computes the metrics of `metrics.py`. Recording is a few array copies per control step into
+growable arrays (no per-env Python work, no unpacking); episodes are split when read.
+`write(dir)` saves
     physvla_episodes.jsonl     one JSON record per episode (arrays included)
     physvla_diagnostics.json   aggregates: success, metrics, firing rates, overhead, pass-throughs
     physvla_states.npz         (only with save_states; PHYSVLA_SAVE_STATES=1 in lerobot-eval) the
@@ -22,18 +24,40 @@ import numpy as np
 from lerobot_physvla import metrics
 from lerobot_physvla.core.phase import PHASE_NAMES
 from lerobot_physvla.core.state import REASONS
+from lerobot_physvla.core.tick import D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, D_W_SUM
 
 
 class _Episode:
+    """One env's episode: per-step arrays taken from the recording (`fill`)."""
+
     def __init__(self, env_index: int, task_id: int, number: int):
         self.env_index, self.task_id, self.number = env_index, task_id, number
-        self.raw, self.corrected, self.executed = [], [], []
-        self.phase, self.r_el, self.r_energy, self.status = [], [], [], []
-        self.eef, self.d_obj, self.d_tgt, self.t_us = [], [], [], []
-        self.states = []  # packed state rows, kept only when the recorder saves states
-        self.el_weight = []  # sum of Branch B weights (0 where it did not run)
+        self.executed: list = []  # the action the sim executed at each step (None where not echoed)
         self.success = False
         self.dt = 0.05
+        self.fill(None, np.zeros(0, np.intp), env_index)
+
+    def fill(self, seg, ks: np.ndarray, i: int) -> None:
+        """Per-step arrays of env i at the recording's rows ks of segment seg."""
+        if seg is None:
+            z = np.zeros(0)
+            self.raw = self.corrected = np.zeros((0, 0))
+            self.phase, self.status = np.zeros(0, int), np.zeros(0, int)
+            self.r_el = self.r_energy = self.d_obj = self.d_tgt = self.t_us = self.el_weight = z
+            self.eef, self.states = np.zeros((0, 3)), np.zeros((0, 0))
+            return
+        self.raw, self.corrected = seg.raw[ks, i], seg.out[ks, i]
+        d = seg.diag[ks, i]
+        self.phase, self.status = d[:, D_PHASE].astype(int), d[:, D_STATUS].astype(int)
+        self.r_el, self.r_energy = d[:, D_R_EL], d[:, D_R_ENERGY]
+        self.d_obj, self.d_tgt = d[:, D_OBJ], d[:, D_TGT]
+        self.el_weight = d[:, D_W_SUM]  # sum of Branch B weights (0 where it did not run)
+        self.eef = seg.header[ks, i, 3:6]
+        self.t_us = seg.t_us[ks]
+        dts = seg.header[ks, i, 2]
+        if len(dts) and dts[-1] > 0:
+            self.dt = float(dts[-1])
+        self.states = seg.states[ks, i] if seg.states is not None else np.zeros((len(ks), 0))
 
     def to_record(self, horizon: int | None) -> dict:
         steps = len(self.raw)
@@ -83,65 +107,129 @@ def _run_length(phases) -> list[list]:
     return out
 
 
+class _Segment:
+    """Per-call rows of one batch size, in growable arrays (capacity doubles when full)."""
+
+    HEADER = 6  # packed-state prefix kept per env: valid, episode_step, dt, eef_pos (state.py order)
+
+    def __init__(self, b: int, a_dim: int, n_diag: int, n_extra: int, n_state: int | None):
+        self.b, self.a_dim, self.n_diag, self.n_extra, self.n_state = b, a_dim, n_diag, n_extra, n_state
+        self.n = 0
+        cap = 64
+        self.raw, self.out = np.zeros((cap, b, a_dim)), np.zeros((cap, b, a_dim))
+        self.header = np.zeros((cap, b, self.HEADER))
+        self.diag = np.zeros((cap, b, n_diag))
+        self.extra = np.full((cap, b, n_extra), np.nan)
+        self.t_us = np.zeros(cap)
+        self.states = np.zeros((cap, b, n_state)) if n_state else None
+
+    def fits(self, b, a_dim, n_diag, n_extra, n_state) -> bool:
+        return (b, a_dim, n_diag, n_extra, n_state) == (self.b, self.a_dim, self.n_diag, self.n_extra, self.n_state)
+
+    def append(self, raw, out, flat, diag, extra, t_us: float) -> None:
+        k = self.n
+        if k == len(self.t_us):
+            for name in ("raw", "out", "header", "diag", "extra", "t_us", "states"):
+                arr = getattr(self, name)
+                if arr is not None:
+                    grown = np.full((2 * len(arr), *arr.shape[1:]), np.nan) if name == "extra" else np.zeros(
+                        (2 * len(arr), *arr.shape[1:]))
+                    grown[:k] = arr[:k]
+                    setattr(self, name, grown)
+        self.raw[k] = raw
+        self.out[k] = out
+        self.header[k] = flat[:, : self.HEADER]
+        self.diag[k] = diag
+        if extra is not None:
+            self.extra[k] = extra
+        self.t_us[k] = t_us
+        if self.states is not None:
+            self.states[k] = flat
+        self.n = k + 1
+
+
 class EpisodeRecorder:
     """Collects per-step corrector output into per-env episodes (a PhysVLACorrectorStep listener).
 
     Attributes:
         horizon: episode length used for efficiency (the env's max steps), or None.
         gripper_index: the gripper's action entry (for the veto firing rate), or None.
-        episodes: finished and running episodes, in start order.
+        save_states: keep every packed state row (for physvla_states.npz).
+        episodes: finished and running episodes, in start order (split from the recording when read).
     """
 
     def __init__(self, horizon: int | None = None, save_states: bool = False, gripper_index: int | None = 6):
         self.horizon = horizon
         self.gripper_index = gripper_index
         self.save_states = save_states
-        self.episodes: list[_Episode] = []
-        self._open: dict[int, _Episode] = {}
-        self._last_step: dict[int, float] = {}
-        self._closed: set[int] = set()
+        self._segments: list[_Segment] = []
+        self._episodes: list[_Episode] | None = None
+        self._success: dict[int, bool] = {}  # episode number -> success from the env's own record
 
-    def __call__(self, raw, out, state, extra, diag, t_total_s) -> None:
+    def __call__(self, raw, out, flat, extra, corrector, t_total_s) -> None:
+        """One corrector call: raw and corrected actions (B, A) or (B, T, A), the packed states
+        (B, L), the env extras (B, E) or None, the corrector (its diag_buffer) and the call time (s)."""
         b = raw.shape[0]
         raw0 = raw[:, 0] if raw.ndim == 3 else raw
         out0 = out[:, 0] if out.ndim == 3 else out
-        steps = state.episode_step
-        if (steps == 0).all():  # every env just reset: a new rollout batch
-            self._open.clear()
-            self._closed.clear()
-        for i in range(b):
-            if i in self._closed:  # finished: lerobot ignores this env until the next batch
-                continue
-            step = float(steps[i])
-            ep = self._open.get(i)
-            if ep is not None and step == self._last_step[i]:
-                continue  # a frozen sub-env replaying its terminal observation
-            if ep is None or step < self._last_step[i]:
-                task = int(extra[i, 0]) if extra is not None else -1
-                ep = self._open[i] = _Episode(i, task, len(self.episodes))
-                self.episodes.append(ep)
-            elif extra is not None and ep.executed:
-                ep.executed[-1] = extra[i, 2 : 2 + raw0.shape[1]].copy()  # what the sim executed last step
-            self._last_step[i] = step
-            if extra is not None and extra[i, 1] > 0.5:  # the last action succeeded: episode over
-                ep.success = True
-                self._closed.add(i)
-                continue
-            ep.dt = float(state.dt[i]) or ep.dt
-            ep.raw.append(raw0[i].copy())
-            ep.corrected.append(out0[i].copy())
-            ep.executed.append(None)
-            ep.phase.append(int(diag.phase[i]))
-            ep.r_el.append(float(diag.r_el[i]))
-            ep.r_energy.append(float(diag.r_energy[i]))
-            ep.status.append(int(diag.status[i]))
-            ep.eef.append(state.eef_pos[i].copy())
-            ep.d_obj.append(float(diag.d_obj_xy[i]))
-            ep.d_tgt.append(float(diag.d_tgt_xy[i]))
-            ep.t_us.append(t_total_s * 1e6 / b)
-            ep.el_weight.append(float(diag.weights[i].sum()))
-            if self.save_states:
-                ep.states.append(state.pack()[i].copy())
+        diag = corrector.diag_buffer
+        n_extra = 0 if extra is None else extra.shape[1]
+        n_state = flat.shape[1] if self.save_states else None
+        seg = self._segments[-1] if self._segments else None
+        if seg is None or not seg.fits(b, raw0.shape[1], diag.shape[1], max(n_extra, seg.n_extra if seg else 0), n_state):
+            seg = _Segment(b, raw0.shape[1], diag.shape[1], n_extra, n_state)
+            self._segments.append(seg)
+        seg.append(raw0, out0, flat, diag, extra, t_total_s * 1e6 / b)
+        self._episodes = None
+
+    @property
+    def episodes(self) -> list[_Episode]:
+        if self._episodes is None:
+            self._episodes = self._split()
+            for number, ok in self._success.items():
+                self._episodes[number].success = ok
+        return self._episodes
+
+    def _split(self) -> list[_Episode]:
+        """Episodes from the recording, env by env, by the state's step counter and the env's extras:
+        a step counter that goes back starts an episode; a repeated one is a frozen sub-env replaying
+        its terminal observation; extras echo the executed action and mark success (the env is then
+        ignored until every env restarts together: lerobot's next rollout batch)."""
+        episodes: list[_Episode] = []
+        for seg in self._segments:
+            opened: dict[int, tuple[_Episode, list[int]]] = {}
+            last: dict[int, float] = {}
+            closed: set[int] = set()
+            runs: list[tuple[_Episode, list[int], int]] = []
+            for k in range(seg.n):
+                steps = seg.header[k, :, 1]
+                if (steps == 0).all():  # every env just reset: a new rollout batch
+                    opened.clear()
+                    closed.clear()
+                for i in range(seg.b):
+                    if i in closed:  # finished: lerobot ignores this env until the next batch
+                        continue
+                    step, ex = float(steps[i]), seg.extra[k, i]
+                    cur = opened.get(i)
+                    if cur is not None and step == last[i]:
+                        continue
+                    if cur is None or step < last[i]:
+                        task = int(ex[0]) if ex.size and np.isfinite(ex[0]) else -1
+                        cur = opened[i] = (_Episode(i, task, len(episodes)), [])
+                        episodes.append(cur[0])
+                        runs.append((cur[0], cur[1], i))
+                    elif ex.size > 2 and cur[1] and np.isfinite(ex[2]):
+                        cur[0].executed[-1] = ex[2 : 2 + seg.a_dim].copy()  # what the sim executed last step
+                    last[i] = step
+                    if ex.size > 1 and ex[1] > 0.5:  # the last action succeeded: episode over
+                        cur[0].success = True
+                        closed.add(i)
+                        continue
+                    cur[1].append(k)
+                    cur[0].executed.append(None)
+            for ep, ks, i in runs:
+                ep.fill(seg, np.asarray(ks, dtype=np.intp), i)
+        return episodes
 
     def apply_env_successes(self, per_task: dict[int, list[bool]]) -> None:
         """Take success from the env's own record (lerobot's eval_info.json), episode by episode.
@@ -158,7 +246,7 @@ class EpisodeRecorder:
             if len(eps) != len(successes):
                 continue  # cannot be matched one to one: keep what was observed
             for ep, ok in zip(eps, successes):
-                ep.success = bool(ok)
+                ep.success = self._success[ep.number] = bool(ok)
 
     def records(self) -> list[dict]:
         return [ep.to_record(self.horizon) for ep in self.episodes]
@@ -174,7 +262,7 @@ class EpisodeRecorder:
         g = self.gripper_index
         for ep in self.episodes:
             phases.update(PHASE_NAMES[p] if p >= 0 else "pass-through" for p in ep.phase)
-            if not ep.raw:
+            if not len(ep.raw):
                 continue
             raw, cor, ph = np.asarray(ep.raw), np.asarray(ep.corrected), np.asarray(ep.phase)
             corrected_steps += int((np.abs(cor - raw).max(axis=1) > 0).sum())

@@ -4,6 +4,7 @@ import numpy as np
 
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.core.state import packed_size
 from lerobot_physvla.diagnostics import EpisodeRecorder
 
 from conftest import make_state
@@ -17,7 +18,7 @@ def feed(rec, corr, steps, success, executed):
     extra[:, 2:] = executed
     raw = np.full((2, 7), 0.1)
     out = corr(raw, st)
-    rec(raw, out, st, extra, corr.last, 1e-5)
+    rec(raw, out, st.pack(), extra, corr, 1e-5)
 
 
 def test_recorder_splits_episodes_and_stops_at_success(tmp_path):
@@ -38,3 +39,25 @@ def test_recorder_splits_episodes_and_stops_at_success(tmp_path):
     assert s["veto_fire_rate"] == 1.0 and s["el_fire_rate"] == 1.0  # phys_el soft: Branch B always on
     rec.write(tmp_path, config={"mode": "phys_el"})
     assert (tmp_path / "physvla_episodes.jsonl").read_text().count("\n") == 4
+
+
+def test_recording_grows_past_its_first_capacity_and_keeps_states(tmp_path):
+    rec, corr = EpisodeRecorder(save_states=True), Corrector(PhysVLAConfig(), 2)
+    for t in range(150):  # one episode per env, longer than the first capacity (64 rows)
+        feed(rec, corr, [t, t], [0, 0], 0.1)
+    eps = rec.episodes
+    assert [len(e.raw) for e in eps] == [150, 150] and eps[0].states.shape == (150, packed_size(7))
+    np.testing.assert_array_equal(eps[1].states[:, 1], np.arange(150))  # episode_step column of the packed rows
+    assert rec.summary()["steps"] == 300
+    rec.write(tmp_path)
+    assert np.load(tmp_path / "physvla_states.npz")["ep1_states"].shape[0] == 150
+
+
+def test_a_listener_call_copies_what_it_keeps():
+    """The step hands the recorder arrays it reuses (the corrector's diag buffer): a record must
+    not change when they are overwritten."""
+    rec, corr = EpisodeRecorder(), Corrector(PhysVLAConfig(), 2)
+    feed(rec, corr, [0, 0], [0, 0], 0.0)
+    phase0 = rec.episodes[0].phase.copy()
+    corr.diag_buffer[:] = 7.0
+    assert (rec.episodes[0].phase == phase0).all()

@@ -27,16 +27,19 @@ from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from lerobot_physvla.core.blend import blend, guard
 from lerobot_physvla.core.branch_a import phase_step
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrections.base import N_MEM, channel_index, params
 from lerobot_physvla.core.dynamics import ELGate, el_gate
-from lerobot_physvla.core.phase import APPROACH
 from lerobot_physvla.core.state import (
-    GUARD_CLIPPED, GUARD_HELD, GUARDS, INVALID_DT, NONFINITE_OUTPUT, OK, REASONS, SINGULAR, PhysState, field_offsets,
-    n_joints_from_size,
+    GUARD_CLIPPED, GUARD_HELD, GUARDS, INVALID_DT, OK, REASONS, SINGULAR, PhysState, field_offsets, n_joints_from_size,
+)
+from lerobot_physvla.core.tick import (
+    D_DEV, D_GUARD, D_LIFT, D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, FP_B, FP_CAP, FP_D_GRASP,
+    FP_GRIP_OPEN, FP_H_LIFT, FP_HIGH, FP_LOW, IP_B, IP_BASELINE, IP_BRANCH_B, IP_FLAGS, IP_GRIP, IP_N, IP_PHASE,
+    IP_POS, IP_TEMPORAL, IP_VETO, N_DIAG, N_FP, N_IP, correct_tick, record_tick,
 )
 
 
@@ -53,8 +56,9 @@ class StepDiagnostics:
         weights: (B, A) Branch B weights (0 where it did not run).
         deviation: (B,) max |a - a_raw| over channels, action units.
         status: (B,) index into REASONS (0 = corrected).
-        t_branch_a_s: wall time of phase detection + Branch A (+ temporal EMA), s, whole batch.
-        t_branch_b_s: wall time of the EL gate + blender, s, whole batch.
+        t_branch_a_s: wall time of phase detection + Branch A (+ temporal EMA), s, whole batch
+            (NaN unless the corrector profiles: fused, the stages are one compiled call).
+        t_branch_b_s: wall time of the EL gate + blender + safety net, s, whole batch (idem).
         t_total_s: wall time of the whole call, s, whole batch.
     """
 
@@ -76,68 +80,6 @@ class StepDiagnostics:
         return self.status != OK
 
 
-@njit(cache=True, error_model="numpy")
-def _blend(a_raw, a_cand, phase, status, cap, grip, gripper_open, veto, low, high):
-    """Eq. 2 with the gripper rule and clipping for every env whose status is OK; an env whose
-    result is not finite gets status NONFINITE_OUTPUT. Rows of other envs are left for `_guard`."""
-    out = np.empty_like(a_raw)
-    dev = np.zeros(a_raw.shape[0])
-    for i in range(a_raw.shape[0]):
-        if status[i] == OK:
-            finite = True
-            for k in range(a_raw.shape[1]):
-                v = (1.0 - cap) * a_raw[i, k] + cap * a_cand[i, k]
-                if veto and k == grip and phase[i] == APPROACH:
-                    v = gripper_open
-                v = min(max(v, low), high)
-                finite = finite and np.isfinite(v)
-                out[i, k] = v
-                dev[i] = max(dev[i], abs(v - a_raw[i, k]))
-            if finite:
-                continue
-            status[i] = NONFINITE_OUTPUT
-            dev[i] = 0.0
-    return out, dev
-
-
-@njit(cache=True, error_model="numpy")
-def _guard(out, a_raw, status, every, absolute, hold0, low, high, last, has_last, commit):
-    """The safety net on emitted actions (see the module's contract), in place on out (B, A).
-
-    Rows with status != OK (every row if `every`) get a_raw clipped to [low, high] if it is
-    finite, else the hold action: 0 where absolute[k] is False, else last[i, k] (or hold0[k]
-    before this env emitted anything). On commit, out becomes the env's `last`.
-    Returns (B,) int8 GUARD_* codes.
-    """
-    b, a_dim = out.shape
-    guard = np.zeros(b, np.int8)
-    for i in range(b):
-        if every or status[i] != OK:
-            finite = True
-            for k in range(a_dim):
-                if not np.isfinite(a_raw[i, k]):
-                    finite = False
-                    break
-            if finite:
-                for k in range(a_dim):
-                    v = min(max(a_raw[i, k], low), high)
-                    if v != a_raw[i, k]:
-                        guard[i] = GUARD_CLIPPED
-                    out[i, k] = v
-            else:
-                guard[i] = GUARD_HELD
-                for k in range(a_dim):
-                    if absolute[k]:
-                        out[i, k] = last[i, k] if has_last[i] else hold0[k]
-                    else:
-                        out[i, k] = 0.0
-        if commit:
-            for k in range(a_dim):
-                last[i, k] = out[i, k]
-            has_last[i] = True
-    return guard
-
-
 class Corrector:
     """Batched PhysVLA corrector over B envs with per-env memory.
 
@@ -145,17 +87,23 @@ class Corrector:
         cfg: the configuration (mode and every hyperparameter).
         batch_size: number of envs B.
         last: StepDiagnostics of the latest call (built only when read).
+        diag_buffer: (B, N_DIAG + A) diagnostics of the latest committed step, overwritten in
+            place by every call (columns D_* in tick.py; `last` is a copy in named fields).
+        profile: run the tick's stages one by one and time Branch A and B apart (slower; for
+            benchmarks). By default a tick is one compiled call (tick.py).
         passthrough_counts: Counter of reasons (REASONS) an env's action was passed through (clipped).
         guard_counts: Counter of what the safety net did (GUARDS): clipped_to_bounds,
             held_nonfinite_action.
         steps: number of env-steps seen (B per call; a chunk counts once).
     """
 
-    def __init__(self, cfg: PhysVLAConfig | None = None, batch_size: int = 1, warmup: bool = True):
+    def __init__(self, cfg: PhysVLAConfig | None = None, batch_size: int = 1, warmup: bool = True,
+                 profile: bool = False):
         self.cfg = cfg if cfg is not None else PhysVLAConfig()
         self.cfg.validate()
         lay = self.layout = self.cfg.action_layout
         self.batch_size = b = int(batch_size)
+        self.profile = bool(profile)
         self.branch_b = ELGate(self.cfg) if self.cfg.mode == "phys_el" and self.cfg.el_mode != "off" else None
         self.passthrough_counts: Counter = Counter()
         self.guard_counts: Counter = Counter()
@@ -169,10 +117,16 @@ class Corrector:
         self._hold0 = lay.hold()
         self._last_out = np.zeros((b, lay.dim))  # the action each env emitted last (the hold of absolute channels)
         self._has_last = np.zeros(b, np.bool_)
-        self._offsets: dict[int, np.ndarray] = {}
+        self._params: dict[int, np.ndarray] = {}  # joint count -> integer parameters of the tick (tick.py)
+        self._fp = self._float_params()
+        # diagnostics of the latest committed step, written in place by the kernel (columns: tick.py)
+        self.diag_buffer = np.zeros((b, N_DIAG + lay.dim))
+        self.diag_buffer[:, D_PHASE] = -1
+        self.diag_buffer[:, D_R_EL : D_R_ENERGY + 1] = np.nan
         self._warned: set[str] = set()
-        self._diag = None  # raw material of `last`, built into StepDiagnostics on access
-        self._t_total = 0.0
+        self._diag: StepDiagnostics | None = None  # built from the buffers when `last` is read
+        self._has_diag = False
+        self._t_a = self._t_b = self._t_total = 0.0
         if warmup and self._warm_key() not in Corrector._warm:
             self.warm_up()
 
@@ -180,7 +134,7 @@ class Corrector:
 
     def _warm_key(self):
         c = self.cfg
-        return c.mode, c.el_mode, c.weighting, c.gripper_rule, c.chunk
+        return c.mode, c.el_mode, c.weighting, c.gripper_rule, c.chunk, self.profile
 
     def warm_up(self) -> None:
         """Run every kernel of this mode once on a synthetic state and forget it, so that no
@@ -200,7 +154,7 @@ class Corrector:
         self.guard_counts.clear()
         self._warned.clear()
         self.steps = 0
-        self._diag = None
+        self._diag, self._has_diag = None, False
         self.reset()
         Corrector._warm.add(self._warm_key())
 
@@ -278,69 +232,111 @@ class Corrector:
 
     @property
     def last(self) -> StepDiagnostics | None:
-        """StepDiagnostics of the latest call (None before the first)."""
-        if self._diag is None:
+        """StepDiagnostics of the latest call (None before the first); copies, built when read."""
+        if not self._has_diag:
             return None
-        if not isinstance(self._diag, StepDiagnostics):
-            phase, geo, r_diag, weights, dev, status, ta, tb = self._diag
-            self._diag = StepDiagnostics(phase, geo[:, 0], geo[:, 1], geo[:, 2], r_diag[:, 0], r_diag[:, 1], weights,
-                                         dev, status, ta, tb)
+        if self._diag is None:
+            d = self.diag_buffer
+            self._diag = StepDiagnostics(
+                d[:, D_PHASE].astype(np.int8), d[:, D_OBJ].copy(), d[:, D_TGT].copy(), d[:, D_LIFT].copy(),
+                d[:, D_R_EL].copy(), d[:, D_R_ENERGY].copy(), d[:, N_DIAG:].copy(), d[:, D_DEV].copy(),
+                d[:, D_STATUS].astype(np.int8), self._t_a, self._t_b)
         self._diag.t_total_s = self._t_total
         return self._diag
 
     # ------------------------------------------------------------------ one step
-    def _phase_offsets(self, n: int) -> np.ndarray:
-        if n not in self._offsets:
-            f = field_offsets(n)
-            self._offsets[n] = np.array([f[k] for k in ("valid", "eef_pos", "obj_pos", "obj_rest_z", "target_pos")])
-        return self._offsets[n]
+    def _float_params(self) -> np.ndarray:
+        cfg, lay = self.cfg, self.layout
+        fp = np.zeros(N_FP)
+        fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_CAP] = cfg.delta_grasp_m, cfg.h_lift_m, cfg.cap
+        fp[FP_GRIP_OPEN], fp[FP_LOW], fp[FP_HIGH] = lay.gripper_open, lay.low, lay.high
+        if self.branch_b is not None:
+            fp[FP_B:N_FP] = self.branch_b.params
+        return fp
+
+    def _int_params(self, n: int) -> np.ndarray:
+        """The tick's integer parameters for an arm of n joints (layout in tick.py), cached."""
+        ip = self._params.get(n)
+        if ip is None:
+            cfg, f = self.cfg, field_offsets(n)
+            ip = np.zeros(N_IP, np.int64)
+            ip[IP_PHASE:IP_B] = [f[k] for k in ("valid", "eef_pos", "obj_pos", "obj_rest_z", "target_pos")]
+            ip[IP_B:IP_N] = [f[k] for k in ("dt", "qdot", "M", "bias", "tau", "J_pos")]
+            ip[IP_N], ip[IP_POS:IP_FLAGS] = n, self._pos
+            if self.branch_b is not None:
+                ip[IP_FLAGS:IP_GRIP] = self.branch_b.flags
+            temporal = cfg.mode == "temporal"
+            ip[IP_GRIP], ip[IP_TEMPORAL], ip[IP_BASELINE] = self._grip, temporal, cfg.mode == "baseline"
+            ip[IP_BRANCH_B] = self.branch_b is not None
+            ip[IP_VETO] = cfg.gripper_rule == "veto" and not temporal
+            self._params[n] = ip
+        return ip
 
     def _guarded(self, out, a_raw, status, every: bool, commit: bool) -> None:
         lay = self.layout
-        guard = _guard(out, a_raw, status, every, self._absolute, self._hold0, lay.low, lay.high, self._last_out,
-                       self._has_last, commit)
-        if guard.any():
-            for code in (GUARD_CLIPPED, GUARD_HELD):
-                k = int((guard == code).sum())
-                if k:
-                    self.guard_counts[GUARDS[code]] += k
-            if (guard == GUARD_HELD).any():
-                self._warn_once("held", "physvla: the policy emitted a non-finite action; the env executes the "
-                                "layout's hold action instead (0 deltas, last gripper command); see guard_counts")
+        g = guard(out, a_raw, status, every, self._absolute, self._hold0, lay.low, lay.high, self._last_out,
+                  self._has_last, commit)
+        if g.any():
+            self._count_guards(g)
+
+    def _count_guards(self, g: np.ndarray) -> None:
+        for code in (GUARD_CLIPPED, GUARD_HELD):
+            k = int((g == code).sum())
+            if k:
+                self.guard_counts[GUARDS[code]] += k
+        if (g == GUARD_HELD).any():
+            self._warn_once("held", "physvla: the policy emitted a non-finite action; the env executes the "
+                            "layout's hold action instead (0 deltas, last gripper command); see guard_counts")
 
     def _step(self, a_raw: np.ndarray, flat: np.ndarray, n: int, commit: bool) -> np.ndarray:
-        """One control step for all envs. Only the committed step (a chunk's first) updates memory
+        """One control step for all envs, one compiled call (tick.py; the stages one by one and
+        timed apart when profiling). Only the committed step (a chunk's first) updates memory
         and the diagnostics."""
-        cfg, lay = self.cfg, self.layout
+        ip = self._int_params(n)
+        if self.profile:
+            out, events = self._staged(a_raw, flat, ip, commit)
+        else:
+            out, events = correct_tick(a_raw, flat, ip, self._fp, self._idx, self._p_a, self._mem, self._absolute,
+                                       self._hold0, self._last_out, self._has_last, commit, self.diag_buffer)
+            self._t_a = self._t_b = float("nan")  # not timed apart (see `profile`)
+        if commit:
+            self._diag, self._has_diag = None, True
+        if events:  # the safety net acted or an env was passed through: count and warn
+            d = self.diag_buffer
+            g = d[:, D_GUARD].astype(np.int8)
+            if g.any():
+                self._count_guards(g)
+            if commit and d[:, D_STATUS].any():
+                self._count(d[:, D_STATUS].astype(np.int8))
+        return out
+
+    def _staged(self, a_raw: np.ndarray, flat: np.ndarray, ip: np.ndarray, commit: bool) -> tuple[np.ndarray, int]:
+        """The tick's stages called one by one (the same kernels as tick.correct_tick), Branch A
+        and Branch B + blend timed apart into the diagnostics."""
+        cfg, fp = self.cfg, self._fp
         t0 = time.perf_counter()
-        temporal = cfg.mode == "temporal"
-        a_phys, phase, geo, status = phase_step(
-            a_raw, flat, self._phase_offsets(n), self._idx, self._p_a, cfg.delta_grasp_m, cfg.h_lift_m,
-            self._mem, commit, temporal,
-        )
+        temporal, baseline = bool(ip[IP_TEMPORAL]), bool(ip[IP_BASELINE])
+        a_phys, phase, geo, status = phase_step(a_raw, flat, ip[IP_PHASE:IP_B], self._idx, self._p_a,
+                                                fp[FP_D_GRASP], fp[FP_H_LIFT], self._mem, commit, temporal)
         t1 = time.perf_counter()
-        weights, r_diag = np.zeros_like(a_raw), np.full((self.batch_size, 2), np.nan)
-        baseline = cfg.mode == "baseline"
-        if baseline:  # identity inside the safety net; phase and geometry above are kept for diagnostics
+        w, r = np.zeros_like(a_raw), np.full((self.batch_size, 2), np.nan)
+        if baseline:
             status[:] = OK
             out, dev = a_raw.copy(), np.zeros(self.batch_size)
         else:
             if self.branch_b is not None:
-                g = self.branch_b
-                a_phys, weights, r_diag = el_gate(
-                    a_raw, a_phys, flat, g.offsets(n), n, self._pos, g.params, g.flags, status, SINGULAR, INVALID_DT
-                )
-            cap = 1.0 if temporal else cfg.cap  # the temporal baseline is applied in full
-            veto = cfg.gripper_rule == "veto" and not temporal
-            out, dev = _blend(a_raw, a_phys, phase, status, cap, self._grip, lay.gripper_open, veto, lay.low, lay.high)
-        self._guarded(out, a_raw, status, baseline, commit)
+                a_phys, w, r = el_gate(a_raw, a_phys, flat, ip[IP_B:IP_N], ip[IP_N], ip[IP_POS:IP_FLAGS],
+                                       fp[FP_B:N_FP], ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
+            cap = 1.0 if temporal else cfg.cap
+            out, dev = blend(a_raw, a_phys, phase, status, cap, self._grip, fp[FP_GRIP_OPEN], bool(ip[IP_VETO]),
+                             fp[FP_LOW], fp[FP_HIGH])
+        lay = self.layout
+        g = guard(out, a_raw, status, baseline, self._absolute, self._hold0, lay.low, lay.high, self._last_out,
+                  self._has_last, commit)
         t2 = time.perf_counter()
         if commit:
-            if status.any():
-                self._count(status)
-                phase[status != OK] = -1
-            self._diag = (phase, geo, r_diag, weights, dev, status, t1 - t0, t2 - t1)
-        return out
+            self._t_a, self._t_b = t1 - t0, t2 - t1
+        return out, record_tick(self.diag_buffer, phase, status, g, geo, r, dev, w, commit)
 
     def _warn_once(self, key: str, message: str) -> None:
         if key not in self._warned:

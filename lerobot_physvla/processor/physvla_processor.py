@@ -27,7 +27,9 @@ from lerobot.utils.constants import OBS_PREFIX
 
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
-from lerobot_physvla.core.state import PhysState, field_offsets, n_joints_from_size
+from lerobot_physvla.core.state import PhysState, field_offsets
+
+_EPISODE_STEP = field_offsets(1)["episode_step"]  # the header fields come before the joint-sized ones
 
 STATE_KEY = "physvla_state"  # inside robot_state: the packed PhysState row (L,)
 EXTRA_KEY = "physvla_extra"  # inside robot_state: [task_id, is_success, last executed action (A)]
@@ -35,23 +37,30 @@ ROBOT_STATE = f"{OBS_PREFIX}robot_state"
 FLAT_STATE = f"{OBS_PREFIX}{STATE_KEY}"  # top-level alternative (datasets, robots)
 
 
-@dataclass
 class StateBus:
     """Latest physical state of B envs, handed from the capture step to the corrector step.
 
     Attributes:
         state: (B, L) packed states, or None before the first observation.
-        extra: (B, E) extras exported by the env (task id, success, executed action) or None.
+        extra: (B, E) extras exported by the env (task id, success, executed action) or None;
+            converted from the observation's tensor only when read (the recorder reads it).
         seq: incremented at every publish.
     """
 
-    state: np.ndarray | None = None
-    extra: np.ndarray | None = None
-    seq: int = 0
+    def __init__(self) -> None:
+        self.state: np.ndarray | None = None
+        self.seq = 0
+        self._extra = self._extra_raw = None
 
-    def publish(self, state: np.ndarray, extra: np.ndarray | None = None) -> None:
-        self.state, self.extra = state, extra
+    def publish(self, state: np.ndarray, extra=None) -> None:
+        self.state, self._extra_raw, self._extra = state, extra, None
         self.seq += 1
+
+    @property
+    def extra(self) -> np.ndarray | None:
+        if self._extra is None and self._extra_raw is not None:
+            self._extra = np.atleast_2d(_to_numpy(self._extra_raw))
+        return self._extra
 
 
 _BUSES: dict[str, StateBus] = {}
@@ -63,17 +72,29 @@ def get_bus(name: str = "default") -> StateBus:
 
 
 def _to_numpy(x) -> np.ndarray:
+    """A float array of x, with no copy where it can be had (a CPU tensor's own memory)."""
     if isinstance(x, torch.Tensor):
-        x = x.detach()
-        if x.device.type != "cpu":
-            x = x.cpu()
-        return x.numpy() if x.dtype == torch.float64 else x.double().numpy()
-    return np.asarray(x, dtype=np.float64)
+        try:
+            a = x.numpy()  # the fast path: a CPU tensor that needs no grad
+        except (RuntimeError, TypeError):  # requires grad, not on the CPU, or a dtype numpy lacks (bf16)
+            a = x.detach().cpu().double().numpy()
+    else:
+        a = np.asarray(x)
+    return a if a.dtype.kind == "f" else a.astype(np.float64)
+
+
+def _like(out: np.ndarray, action: torch.Tensor) -> torch.Tensor:
+    """out (float64) as a new tensor of the action's dtype and device (numpy's cast costs less than torch's)."""
+    if action.dtype is torch.float32:
+        t = torch.from_numpy(out.astype(np.float32))
+    else:
+        t = torch.from_numpy(out).to(dtype=action.dtype)
+    return t if action.is_cpu else t.to(action.device)
 
 
 def _episode_step(flat: np.ndarray) -> np.ndarray:
     """(B,) episode_step column of (B, L) packed states (no unpacking)."""
-    return flat[:, field_offsets(n_joints_from_size(flat.shape[1]))["episode_step"]].copy()
+    return flat[:, _EPISODE_STEP].copy()
 
 
 def _safe_any_shape(a: np.ndarray, low: float, high: float) -> np.ndarray:
@@ -104,32 +125,38 @@ class PhysVLAStateCaptureStep(ProcessorStep):
     """
 
     bus: str = "default"
+    _bus: StateBus | None = field(default=None, init=False, repr=False)
 
     def __call__(self, transition: EnvTransition) -> EnvTransition:
         obs = transition.get(TransitionKey.OBSERVATION)
         if not obs:
             return transition
-        state = extra = None
-        obs = dict(obs)
         rs = obs.get(ROBOT_STATE)
+        extra = None
         if isinstance(rs, dict) and STATE_KEY in rs:
             rs = dict(rs)
             state = rs.pop(STATE_KEY)
             extra = rs.pop(EXTRA_KEY, None)
+            obs = dict(obs)
             if rs:
                 obs[ROBOT_STATE] = rs
             else:
-                obs.pop(ROBOT_STATE)
+                del obs[ROBOT_STATE]
         elif FLAT_STATE in obs:
+            obs = dict(obs)
             state = obs.pop(FLAT_STATE)
-        if state is None:
+        else:
             return transition
         state = _to_numpy(state)
-        get_bus(self.bus).publish(state[None] if state.ndim == 1 else state,
-                                  None if extra is None else np.atleast_2d(_to_numpy(extra)))
+        bus = self._bus if self._bus is not None else self._bind_bus()
+        bus.publish(state[None] if state.ndim == 1 else state, extra)
         new = dict(transition)
         new[TransitionKey.OBSERVATION] = obs
         return new
+
+    def _bind_bus(self) -> StateBus:
+        self._bus = get_bus(self.bus)
+        return self._bus
 
     def get_config(self) -> dict[str, Any]:
         return {"bus": self.bus}
@@ -167,6 +194,7 @@ class PhysVLACorrectorStep(ProcessorStep):
     listeners: list = field(default_factory=list, init=False, repr=False)
     _corrector: Corrector | None = field(default=None, init=False, repr=False)
     _last_step: np.ndarray | None = field(default=None, init=False, repr=False)
+    _bus: StateBus | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.cfg = PhysVLAConfig.from_dict(self.config)  # validates: unknown mode -> ValueError
@@ -183,6 +211,10 @@ class PhysVLACorrectorStep(ProcessorStep):
         self.passthrough_counts[why] += 1
         if self.passthrough_counts[why] == 1:
             warnings.warn(f"physvla: passing actions through ({why}): {fix}", RuntimeWarning, stacklevel=4)
+
+    def _bind_bus(self) -> StateBus:
+        self._bus = get_bus(self.bus)
+        return self._bus
 
     def _ensure_corrector(self, b: int) -> Corrector:
         if self._corrector is None or self._corrector.batch_size != b:
@@ -201,7 +233,7 @@ class PhysVLACorrectorStep(ProcessorStep):
             lay = self.cfg.action_layout
             out = _safe_any_shape(_to_numpy(action), lay.low, lay.high)
         new = dict(transition)
-        new[TransitionKey.ACTION] = torch.from_numpy(out).to(device=action.device, dtype=action.dtype)
+        new[TransitionKey.ACTION] = _like(out, action)
         return new
 
     def _correct(self, action: torch.Tensor) -> np.ndarray:
@@ -213,8 +245,10 @@ class PhysVLACorrectorStep(ProcessorStep):
                        f"{lay.dim}; set --physvla.layout to the env's action layout")
             return _safe_any_shape(raw, lay.low, lay.high)
         b = raw.shape[0]
-        corrector = self._ensure_corrector(b)
-        bus = get_bus(self.bus)
+        corrector = self._corrector
+        if corrector is None or corrector.batch_size != b:
+            corrector = self._ensure_corrector(b)
+        bus = self._bus if self._bus is not None else self._bind_bus()
         if bus.state is None:
             self._warn("no_state", "no physical state reached the postprocessor; evaluate with "
                        "--env.type=libero_physvla (or --policy.postprocess=physvla), or feed observation.physvla_state")
@@ -225,21 +259,25 @@ class PhysVLACorrectorStep(ProcessorStep):
             return corrector.passthrough(raw, "state_batch_mismatch")
         # Episode boundaries: an env whose step counter went back (to 0 at reset) starts afresh.
         step = _episode_step(flat)
-        if self._last_step is not None:
-            new_ep = step < self._last_step
+        last = self._last_step
+        if last is None:
+            corrector.reset()
+        elif b == 1:
+            if step[0] < last[0]:
+                corrector.reset()
+        else:
+            new_ep = step < last
             if new_ep.any():
                 corrector.reset(np.flatnonzero(new_ep))
-        else:
-            corrector.reset()
         self._last_step = step
 
+        if not self.listeners:
+            return corrector.correct_packed(raw, flat)
         t0 = time.perf_counter()
         out = corrector.correct_packed(raw, flat)
-        if self.listeners:  # per-step recording only when someone listens
-            t_total = time.perf_counter() - t0
-            state = PhysState.unpack(flat)
-            for listener in self.listeners:
-                listener(raw, out, state, bus.extra, corrector.last, t_total)
+        t_total = time.perf_counter() - t0
+        for listener in self.listeners:  # per-step recording only when someone listens
+            listener(raw, out, flat, bus.extra, corrector, t_total)
         return out
 
     def get_config(self) -> dict[str, Any]:

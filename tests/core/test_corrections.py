@@ -83,6 +83,10 @@ def test_source_key_covers_every_correction_file():
     files = {f.name for f in branch_a.SOURCE_FILES}
     on_disk = {f.name for f in (PKG / "lerobot_physvla/core/corrections").glob("*.py")}
     assert on_disk <= files and {"phase.py", "state.py", "branch_a.py"} <= files
+    from lerobot_physvla.core import tick
+
+    assert set(branch_a.SOURCE_FILES) < set(tick.TICK_SOURCE_FILES)
+    assert {"tick.py", "blend.py", "dynamics.py"} <= {f.name for f in tick.TICK_SOURCE_FILES}
 
 
 _PROBE = """
@@ -112,6 +116,7 @@ def test_editing_one_correction_file_recompiles_the_cached_kernel(tmp_path):
     before = probe()  # grasp phase, beta 0.5: 0.5 * 0.02 m / 0.05 m per unit = 0.2
     assert before == pytest.approx(0.2)
     assert any((tmp_path / "numba").rglob("*branch_a*phase_step*.nbi")), "phase_step was not cached"
+    assert any((tmp_path / "numba").rglob("*tick*correct_tick*.nbi")), "the fused tick was not cached"
     assert probe() == before  # served from the cache
     f = tmp_path / "lerobot_physvla/core/corrections/grasp_guidance.py"
     f.write_text(f.read_text().replace("beta, scale = p[BETA], p[METRES_PER_UNIT]",

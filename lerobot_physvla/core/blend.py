@@ -1,0 +1,77 @@
+"""The capped blender (eq. 2) and the safety net on every emitted action, per env (numba).
+
+`blend` mixes the policy's action with the corrected candidate, a = (1 - c) a_raw + c a_cand,
+applies the gripper rule and clips to the layout's bounds; `guard` is the do-no-harm net of
+`corrector.py`'s contract: rows that could not be corrected get the policy's action clipped
+to the bounds, or the layout's hold action where it is not finite.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from lerobot_physvla.core.phase import APPROACH
+from lerobot_physvla.core.state import GUARD_CLIPPED, GUARD_HELD, NONFINITE_OUTPUT, OK
+
+
+@njit(cache=True, error_model="numpy")
+def blend(a_raw, a_cand, phase, status, cap, grip, gripper_open, veto, low, high):
+    """Eq. 2 with the gripper rule and clipping for every env whose status is OK; an env whose
+    result is not finite gets status NONFINITE_OUTPUT. Rows of other envs are left for `_guard`."""
+    out = np.empty_like(a_raw)
+    dev = np.zeros(a_raw.shape[0])
+    for i in range(a_raw.shape[0]):
+        if status[i] == OK:
+            finite = True
+            for k in range(a_raw.shape[1]):
+                v = (1.0 - cap) * a_raw[i, k] + cap * a_cand[i, k]
+                if veto and k == grip and phase[i] == APPROACH:
+                    v = gripper_open
+                v = min(max(v, low), high)
+                finite = finite and np.isfinite(v)
+                out[i, k] = v
+                dev[i] = max(dev[i], abs(v - a_raw[i, k]))
+            if finite:
+                continue
+            status[i] = NONFINITE_OUTPUT
+            dev[i] = 0.0
+    return out, dev
+
+
+@njit(cache=True, error_model="numpy")
+def guard(out, a_raw, status, every, absolute, hold0, low, high, last, has_last, commit):
+    """The safety net on emitted actions (see the module's contract), in place on out (B, A).
+
+    Rows with status != OK (every row if `every`) get a_raw clipped to [low, high] if it is
+    finite, else the hold action: 0 where absolute[k] is False, else last[i, k] (or hold0[k]
+    before this env emitted anything). On commit, out becomes the env's `last`.
+    Returns (B,) int8 GUARD_* codes.
+    """
+    b, a_dim = out.shape
+    guard = np.zeros(b, np.int8)
+    for i in range(b):
+        if every or status[i] != OK:
+            finite = True
+            for k in range(a_dim):
+                if not np.isfinite(a_raw[i, k]):
+                    finite = False
+                    break
+            if finite:
+                for k in range(a_dim):
+                    v = min(max(a_raw[i, k], low), high)
+                    if v != a_raw[i, k]:
+                        guard[i] = GUARD_CLIPPED
+                    out[i, k] = v
+            else:
+                guard[i] = GUARD_HELD
+                for k in range(a_dim):
+                    if absolute[k]:
+                        out[i, k] = last[i, k] if has_last[i] else hold0[k]
+                    else:
+                        out[i, k] = 0.0
+        if commit:
+            for k in range(a_dim):
+                last[i, k] = out[i, k]
+            has_last[i] = True
+    return guard
