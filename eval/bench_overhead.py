@@ -1,27 +1,44 @@
 """Per-step overhead of the corrector, side by side with a no-op corrector and the env step.
 
-    .venv/bin/python eval/bench_overhead.py [--steps 200] [--repeats 20] [--out eval/results/bench_overhead]
+    .venv/bin/python eval/bench_overhead.py [--steps 200] [--repeats 20] [--episodes 2] [--out eval/results/bench_overhead]
 
-1. Records a real LIBERO-Spatial task-0 episode (state-only, no cameras): the scripted expert's
-   raw actions and the packed physical state at every step, timing `env.step` and the state read.
-2. Replays those inputs through the corrector for B = 1 and B = 8 envs (env i starts i*17 steps
-   into the episode, so the batch mixes phases), for a no-op corrector and each mode, the
-   configs interleaved repeat by repeat so that machine noise falls on all of them alike.
-3. Prints per env-step p50 / p99 of the whole call and of Branch A / Branch B, and the ratios
-   to the no-op corrector and to the env step, all measured in this one run. Writes a markdown
-   table and a JSON next to it.
+1. Kernel: records a real LIBERO-Spatial task-0 episode (state-only, no cameras) -- the scripted
+   expert's raw actions and the packed physical state at every step -- then replays those inputs
+   through `Corrector` for B = 1 and B = 8 envs (env i starts i*17 steps into the episode, so the
+   batch mixes phases), for a no-op corrector and each mode, the configs interleaved repeat by
+   repeat so that machine noise falls on all of them alike. Branch A / Branch B columns come from
+   a profiling twin of each corrector (its stages called one by one); the total is the default,
+   fused call.
+2. Whole path, live in the env loop (what `lerobot-eval --policy.postprocess=physvla` pays per
+   env-step): the state read (`RobosuiteStateSource.read_packed`), the capture step and the
+   corrector step (phys_el, with the EpisodeRecorder that lerobot-eval attaches: diagnostics
+   included) on torch tensors as lerobot hands them over, timed right after each real env step
+   (caches cold, as in a rollout) and again three times back to back on the same inputs (warm).
+   B = 8 reads the env 8 times (each env reads its own state) and counts (capture + step) / 8.
+   A no-op path (the same tensor conversions, no correction) is timed beside it.
+3. First call: a fresh process builds the env, the source and the steps, then times the very
+   first whole-path call (and the first no-op call).
+4. Memory: RSS growth of the corrector step over 10^5 steps (B = 1), without and with the recorder.
+
+Prints every row and, last, `whole path p50 <x> us, p99 <y> us, first call <z> us (B=1)` (live).
+Writes a markdown table and a JSON next to it.
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import json
+import os
 import platform
+import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+import torch
+from lerobot.lerobot_types import TransitionKey
 
 from lerobot_physvla.sim import libero_sim
 from lerobot_physvla.core.config import PhysVLAConfig
@@ -29,6 +46,10 @@ from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.sim.experts import PickPlaceExpert
 from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
 from lerobot_physvla.core.state import PhysState
+from lerobot_physvla.diagnostics import EpisodeRecorder
+from lerobot_physvla.processor.physvla_processor import (
+    EXTRA_KEY, ROBOT_STATE, STATE_KEY, PhysVLACorrectorStep, PhysVLAStateCaptureStep,
+)
 
 CONFIGS = {
     "no-op (identity function)": None,
@@ -74,19 +95,24 @@ def bench(configs: dict, rows, actions, batch: int, repeats: int) -> dict:
     states = [PhysState.unpack(rows[i]) for i in idx]
     acts = [np.ascontiguousarray(actions[i]) for i in idx]
     correctors = {name: (Corrector(cfg, batch) if cfg is not None else None) for name, cfg in configs.items()}
+    twins = {name: (Corrector(cfg, batch, profile=True) if cfg is not None else None) for name, cfg in configs.items()}
     res = {name: {"total": [], "a": [], "b": []} for name in configs}
     for _ in range(repeats + 1):  # the first round warms up (numba compiles on first use)
         for name, c in correctors.items():
             call = c if c is not None else (lambda a, s: a.copy())  # the no-op corrector
+            twin = twins[name]
             if c is not None:
                 c.reset()
+                twin.reset()
             r = res[name]
             for s, a in zip(states, acts):
                 t0 = time.perf_counter()
                 call(a, s)
                 r["total"].append(time.perf_counter() - t0)
-                r["a"].append(c.last.t_branch_a_s if c else 0.0)
-                r["b"].append(c.last.t_branch_b_s if c else 0.0)
+                if twin is not None:
+                    twin(a, s)
+                r["a"].append(twin.last.t_branch_a_s if twin else 0.0)
+                r["b"].append(twin.last.t_branch_b_s if twin else 0.0)
     out = {}
     for name, r in res.items():
         c = correctors[name]
@@ -95,10 +121,167 @@ def bench(configs: dict, rows, actions, batch: int, repeats: int) -> dict:
     return out
 
 
+def _obs(rows: np.ndarray, extra: np.ndarray) -> dict:
+    """The env observation as lerobot's preprocess_observation hands it to the env preprocessor."""
+    return {ROBOT_STATE: {STATE_KEY: torch.from_numpy(rows), EXTRA_KEY: torch.from_numpy(extra)}}
+
+
+def _noop_capture(tr: dict) -> np.ndarray:
+    return tr[TransitionKey.OBSERVATION][ROBOT_STATE][STATE_KEY].numpy()
+
+
+def _noop_step(tr: dict) -> torch.Tensor:
+    a = tr[TransitionKey.ACTION]
+    return torch.from_numpy(a.numpy().astype(np.float64).astype(np.float32))
+
+
+def whole_path(episodes: int, steps: int, warm_repeats: int = 3) -> dict:
+    """Whole-path timings per env-step, live in the env loop (see the module doc). Right after
+    each env step one path runs first (cold), in turn: B = 1, B = 8, the no-op; then every path
+    runs warm_repeats times back to back."""
+    task = libero_sim.load_task("libero_spatial", 0)
+    env = libero_sim.make_libero_env(task)
+    cfg = PhysVLAConfig(mode="phys_el").to_dict()
+    steps_of = {}
+    for b in (1, 8):
+        cap, cor = PhysVLAStateCaptureStep(bus=f"bench{b}"), PhysVLACorrectorStep(config=cfg, bus=f"bench{b}")
+        cor.listeners.append(EpisodeRecorder())  # diagnostics included, as in lerobot-eval
+        steps_of[b] = (cap, cor)
+    paths = ("B=1", "B=8", "no-op B=1")
+    res = {(kind, p): {"read": [], "capture": [], "step": []} for kind in ("live", "warm") for p in paths}
+    expert = PickPlaceExpert()
+    clock = time.perf_counter
+
+    def run(path: str, src, extra) -> np.ndarray:
+        b = 8 if path == "B=8" else 1
+        t0 = clock()
+        rows = [src.read_packed() for _ in range(b)]
+        t1 = clock()
+        if path.startswith("no-op"):  # without the corrector nothing reads the physical state
+            t1 = t0
+        tr = {TransitionKey.OBSERVATION: _obs(np.stack(rows), np.repeat(extra, b, 0))}  # lerobot's own work
+        raw = expert.act(rows[0][3:6], rows[0][7:10], rows[0][11:14])
+        act = torch.from_numpy(np.repeat(raw[None], b, 0).astype(np.float32))
+        if path.startswith("no-op"):
+            t2 = clock()
+            _noop_capture(tr)
+            t3 = clock()
+            out = _noop_step({TransitionKey.ACTION: act})
+            t4 = clock()
+        else:
+            cap, cor = steps_of[b]
+            t2 = clock()
+            cap(tr)
+            t3 = clock()
+            out = cor({TransitionKey.ACTION: act})[TransitionKey.ACTION]
+            t4 = clock()
+        return out[0].numpy().astype(np.float64), ((t1 - t0) / b, (t3 - t2) / b, (t4 - t3) / b)
+
+    k = 0
+    for ep in range(episodes):
+        libero_sim.reset_to_init_state(env, task, ep)
+        src = RobosuiteStateSource(env.env)
+        src.reset()
+        extra = np.zeros((1, 9))
+        for _ in range(steps):
+            first = paths[k % len(paths)]
+            k += 1
+            order = [first] + [p for p in paths if p != first]
+            a_exec = None
+            for rep in range(1 + warm_repeats):
+                for path in order:
+                    if rep == 0 and path != first:
+                        continue
+                    a, times = run(path, src, extra)
+                    if path == "B=1" or a_exec is None:
+                        a_exec = a
+                    r = res[("live" if rep == 0 else "warm", path)]
+                    for key, t in zip(("read", "capture", "step"), times):
+                        r[key].append(t)
+            env.step(a_exec)
+            src.step()
+            extra[0, 2:] = a_exec
+    env.close()
+    out = {}
+    for (kind, path), r in res.items():
+        r = {key: np.asarray(v) * 1e6 for key, v in r.items()}
+        out[f"{kind} {path}"] = {"total": r["read"] + r["capture"] + r["step"], **r}
+    return out
+
+
+_FIRST_CALL = r"""
+import json, time, numpy as np, torch
+t_start = time.perf_counter()
+from lerobot.lerobot_types import TransitionKey
+from lerobot_physvla.sim import libero_sim
+from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.diagnostics import EpisodeRecorder
+from lerobot_physvla.processor.physvla_processor import PhysVLAStateCaptureStep, PhysVLACorrectorStep
+import bench_overhead as bo
+task = libero_sim.load_task("libero_spatial", 0)
+env = libero_sim.make_libero_env(task)
+libero_sim.reset_to_init_state(env, task, 0)
+t0 = time.perf_counter()
+src = RobosuiteStateSource(env.env); src.reset()
+cap, cor = PhysVLAStateCaptureStep(bus="first"), PhysVLACorrectorStep(config=PhysVLAConfig(mode="phys_el").to_dict(), bus="first")
+cor.listeners.append(EpisodeRecorder())
+t_build = time.perf_counter() - t0
+act = torch.zeros(1, 7)
+c = time.perf_counter
+t0 = c(); row = src.read_packed(); t1 = c()
+tr = {TransitionKey.OBSERVATION: bo._obs(row[None], np.zeros((1, 9)))}
+t2 = c(); cap(tr); t3 = c(); cor({TransitionKey.ACTION: act}); t4 = c()
+bo._noop_capture(tr); bo._noop_step({TransitionKey.ACTION: act}); t5 = c()
+print(json.dumps({"first_call_us": (t1 - t0 + t4 - t2) * 1e6, "read_us": (t1 - t0) * 1e6, "capture_us": (t3 - t2) * 1e6,
+                  "step_us": (t4 - t3) * 1e6, "noop_first_call_us": (t5 - t4) * 1e6, "build_s": t_build}))
+"""
+
+
+def first_call() -> dict:
+    """The first whole-path call of a fresh process (after building env, source and steps)."""
+    r = subprocess.run([sys.executable, "-c", _FIRST_CALL], capture_output=True, text=True,
+                       cwd=Path(__file__).resolve().parent, env={**os.environ, "PYTHONWARNINGS": "ignore"})
+    if r.returncode != 0:
+        raise RuntimeError(r.stderr[-2000:])
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def _rss_bytes() -> int:
+    return int(Path("/proc/self/statm").read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def memory(rows: np.ndarray, actions: np.ndarray, steps: int = 100_000) -> dict:
+    """RSS growth of the corrector step (B = 1) between step steps/10 and step steps."""
+    out = {}
+    for name, listen in (("step", False), ("step + recorder", True)):
+        cap = PhysVLAStateCaptureStep(bus="mem")
+        cor = PhysVLACorrectorStep(config=PhysVLAConfig(mode="phys_el").to_dict(), bus="mem")
+        if listen:
+            cor.listeners.append(EpisodeRecorder())
+        obs = [_obs(r[None].copy(), np.zeros((1, 9))) for r in rows]
+        acts = [torch.from_numpy(a[None].astype(np.float32)) for a in actions]
+        gc.collect()
+        mark = None
+        for k in range(steps):
+            if k == steps // 10:
+                gc.collect()
+                mark = _rss_bytes()
+            i = k % len(rows)
+            cap({TransitionKey.OBSERVATION: obs[i]})
+            cor({TransitionKey.ACTION: acts[i]})
+        gc.collect()
+        grown = _rss_bytes() - mark
+        out[name] = {"rss_growth_bytes": grown, "bytes_per_step": grown / (steps - steps // 10)}
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--steps", type=int, default=200)
     ap.add_argument("--repeats", type=int, default=20)
+    ap.add_argument("--episodes", type=int, default=2, help="live episodes of the whole-path rows")
+    ap.add_argument("--memory-steps", type=int, default=100_000)
     ap.add_argument("--out", default="eval/results/bench_overhead")
     args = ap.parse_args()
 
@@ -107,12 +290,16 @@ def main() -> None:
     step_us = np.median(t_step) * 1e6
     read_us = np.median(t_read) * 1e6
     lines = [
-        f"# Corrector overhead\n",
+        "# Corrector overhead\n",
         f"Command: `{' '.join(['.venv/bin/python', *sys.argv])}`  ",
         f"Machine: {platform.processor() or platform.machine()}, {platform.python_version()}, "
-        f"{len(__import__('os').sched_getaffinity(0))} cores; {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}  ",
-        f"Inputs: {args.steps} recorded steps x {args.repeats} repeats per row; times are per env-step (call time / B).\n",
-        f"LIBERO env step (no cameras): p50 {step_us:.0f} us; state read (RobosuiteStateSource.read_packed: kinematics + CRB + RNE on a scratch MjData): p50 {read_us:.1f} us.\n",
+        f"{len(os.sched_getaffinity(0))} cores; {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}  ",
+        f"Kernel inputs: {args.steps} recorded steps x {args.repeats} repeats per row; times are per env-step "
+        "(call time / B).\n",
+        f"LIBERO env step (no cameras): p50 {step_us:.0f} us; state read (RobosuiteStateSource.read_packed, one "
+        f"compiled copy from the live MjData): p50 {read_us:.1f} us.\n",
+        "## The corrector alone\n",
+        "Total: the default call (one compiled tick). Branch A / Branch B: a profiling twin (stages called one by one).\n",
         "| config | B | p50 total (us) | p99 total (us) | p50 Branch A (us) | p50 Branch B + blend (us) | total / no-op | total / env step |",
         "|---|---|---|---|---|---|---|---|",
     ]
@@ -134,11 +321,66 @@ def main() -> None:
                     f"{row['ratio_noop']:.2f} | {row['ratio_env_step']:.4f} |")
             lines.append(line)
             print(line, flush=True)
+
+    print(f"whole path, live in {args.episodes} episodes of {args.steps} steps ...", flush=True)
+    wp = whole_path(args.episodes, args.steps)
+    lines += [
+        "\n## The whole path per env-step (phys_el, diagnostics included)\n",
+        "State read + capture step + corrector step with lerobot-eval's EpisodeRecorder, on torch tensors as lerobot "
+        "hands them over. *live*: right after each real env step (caches cold, as in a rollout); *warm*: three more "
+        "times back to back on the same inputs. B = 8: eight reads + (capture + step) / 8 per env. No-op: the same "
+        "tensor conversions (state tensor to numpy, action tensor to numpy and back), no state read, no correction. Right after each env step one path runs "
+        "first, in turn (B = 1, B = 8, no-op): each live row holds a third of the steps. p99 excludes each run's "
+        "first call (next section).\n",
+        "| path | p50 total (us) | p99 total (us) | p50 read (us) | p50 capture (us) | p50 corrector step (us) | "
+        "total / no-op | total / env step |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    results["whole_path"] = {}
+    for name, r in wp.items():
+        tot = r["total"][1:]
+        p50, p99 = np.percentile(tot, [50, 99])
+        noop = float(np.median(wp[f"{name.split()[0]} no-op B=1"]["total"][1:]))
+        row = {"p50_us": p50, "p99_us": p99, "samples": len(tot),
+               **{f"p50_{k}_us": float(np.median(r[k][1:])) for k in ("read", "capture", "step")},
+               "ratio_noop": p50 / noop, "ratio_env_step": p50 / step_us}
+        results["whole_path"][name] = row
+        line = (f"| {name} | {p50:.1f} | {p99:.1f} | {row['p50_read_us']:.1f} | {row['p50_capture_us']:.1f} | "
+                f"{row['p50_step_us']:.1f} | {row['ratio_noop']:.1f} | {row['ratio_env_step']:.4f} |")
+        lines.append(line)
+        print(line, flush=True)
+
+    fc = first_call()
+    results["first_call"] = fc
+    lines += [
+        "\n## First call of a fresh process (B = 1)\n",
+        f"Building the env's state source and the two steps (numba kernels loaded and run once, at build time): "
+        f"{fc['build_s'] * 1e3:.0f} ms. The first control tick then costs: whole path {fc['first_call_us']:.0f} us "
+        f"(read {fc['read_us']:.0f}, capture {fc['capture_us']:.0f}, corrector step {fc['step_us']:.0f}); "
+        f"the first no-op call {fc['noop_first_call_us']:.0f} us.\n",
+    ]
+    print(lines[-1].strip(), flush=True)
+
+    mem = memory(rows, actions, args.memory_steps)
+    results["memory"] = mem
+    lines += [f"\n## Memory over {args.memory_steps} steps (B = 1)\n",
+              "| path | RSS growth from step 10^4 to the end (KiB) | bytes / step |", "|---|---|---|"]
+    for name, m in mem.items():
+        lines.append(f"| {name} | {m['rss_growth_bytes'] / 1024:.0f} | {m['bytes_per_step']:.1f} |")
+        print(lines[-1], flush=True)
+    lines.append("\nThe recorder keeps every step of the evaluation by design (the per-episode diagnostics); the "
+                 "step alone allocates nothing that outlives a call.")
+
+    live = results["whole_path"]["live B=1"]
+    last = (f"whole path p50 {live['p50_us']:.1f} us, p99 {live['p99_us']:.1f} us, first call "
+            f"{fc['first_call_us']:.0f} us (B=1)")
+    lines.append(f"\n{last}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "README.md").write_text("\n".join(lines) + "\n")
     (out / "results.json").write_text(json.dumps(results, indent=1, default=float))
     print(f"\nwrote {out}/README.md and results.json")
+    print(last)
 
 
 if __name__ == "__main__":

@@ -76,6 +76,7 @@ class RobosuiteStateSource:
         if self._tgt is not None:
             points.append([f["target_pos"], kind[self._tgt[0]], self._tgt[1]])
         self._points = np.array(points, dtype=np.intp)  # positions the compiled read copies
+        self.read_packed()  # loads the compiled read now, never inside the first control tick
 
     def _resolve(self, name: str) -> tuple[str, int]:
         """('body'|'site', id) of a LIBERO object/fixture/region name or a raw MuJoCo body/site name."""
