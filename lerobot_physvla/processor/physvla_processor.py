@@ -27,7 +27,7 @@ from lerobot.utils.constants import OBS_PREFIX
 
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
-from lerobot_physvla.core.state import PhysState, field_offsets
+from lerobot_physvla.core.state import field_offsets
 
 _EPISODE_STEP = field_offsets(1)["episode_step"]  # the header fields come before the joint-sized ones
 
