@@ -7,6 +7,7 @@
     .venv/bin/python eval/experiments.py lift_plate  [--pairs 20]
     .venv/bin/python eval/experiments.py fetch_sweep [--trials 20]
     .venv/bin/python eval/experiments.py learned     [--per-task 5] [--checkpoints outputs/train]
+    .venv/bin/python eval/experiments.py efficacy    [--stages ablation,design,confirm,lift]
 
 Each writes `eval/results/<experiment>/`: README.md (the table, with this command, how long it
 took and on what), records.json (one record per episode) and plots. Sweeps are resumable:
@@ -27,6 +28,9 @@ re-running the same command skips the units already written under `units/`.
   layout, another arm, task_space EL weighting): the corrector is not tied to one simulator.
 - learned: the LeRobot ACT / Diffusion backbones trained by policies/train_backbones.py x modes
   x the 10 tasks (Table 2 layout).
+- efficacy: does the corrector do good (eval/efficacy.py): per-correction ablation, the shipped
+  default vs baseline vs temporal vs the paper's two readings on a design and a confirmation
+  seed block, paired outcomes; Lift / Fetch noise at sigma 0 and 0.40.
 """
 
 from __future__ import annotations
@@ -404,6 +408,37 @@ def learned(args) -> None:
     write(out, lines, records)
 
 
+def efficacy(args) -> None:
+    import efficacy as ef
+
+    out = RESULTS / "efficacy"
+    stages = args.stages.split(",")
+    units = []
+    if "ablation" in stages:
+        units += [Unit(b, name, ef.ALONE[name].to_dict(), t, s, 1, ef.BACKBONES[b])
+                  for name in ef.ALONE for b in ("expert_clean", *ef.TARGETS[name])
+                  for t in range(10) for s in ef.SCREEN_SEEDS]
+        units += [Unit(b, "baseline", ef.COMPARED["baseline"].to_dict(), t, s, 1, ef.BACKBONES[b])
+                  for b in ef.BACKBONES for t in range(10) for s in ef.SCREEN_SEEDS]
+    for stage, seeds in (("design", ef.DESIGN_SEEDS), ("confirm", ef.CONFIRM_SEEDS)):
+        if stage in stages:
+            units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in ef.COMPARED.items()
+                      for b in ef.BACKBONES for t in range(10) for s in seeds]
+    lift_cfgs = {"baseline": PhysVLAConfig(mode="baseline"), "default": ef.COMPARED["default"]}
+    if "lift" in stages:
+        for first in (ef.LIFT_DESIGN, ef.LIFT_CONFIRM):
+            for sg in (0.0, 0.40):
+                expert = {"action_noise": sg, "noise_stage": "grasp"}
+                units += [Unit(f"lift sigma={sg:.2f}", name, cfg.to_dict(), 0, first, 20, expert, scene="lift")
+                          for name, cfg in lift_cfgs.items()]
+                units += [Unit(f"fetch sigma={sg:.2f}", name, cfg.replace(layout="fetch_4d", weighting="task_space")
+                               .to_dict(), 0, first, 20, expert, scene="fetch_pick_place")
+                          for name, cfg in lift_cfgs.items()]
+    units = list(dict.fromkeys(units))  # the screen's baselines are also design units
+    records, secs = run_units(units, out, args.workers, args.backend)
+    ef.report(out, records, secs, len(units), header, write)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("experiment", choices=tuple(EXPERIMENTS))
@@ -420,6 +455,7 @@ def main() -> None:
     # slower to evaluate on this CPU than the others
     ap.add_argument("--learned", default="act_single,act_chunk,diffusion_chunk",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
+    ap.add_argument("--stages", default="ablation,design,confirm,lift", help="efficacy: which stages to run")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
     args = ap.parse_args()
@@ -427,7 +463,7 @@ def main() -> None:
 
 
 EXPERIMENTS = {"table2": table2, "ablation": ablation, "place_bias": place_bias, "lift_sweep": lift_sweep,
-               "lift_plate": lift_plate, "fetch_sweep": fetch_sweep, "learned": learned}
+               "lift_plate": lift_plate, "fetch_sweep": fetch_sweep, "learned": learned, "efficacy": efficacy}
 
 if __name__ == "__main__":
     main()

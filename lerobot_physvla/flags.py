@@ -1,7 +1,15 @@
 """The `--policy.postprocess` and `--physvla.*` flags: parsing, type conversion, and the config they build.
 
     --policy.postprocess=physvla|none     turn the corrector on (off: lerobot untouched)
+    --physvla.preset=<name>               start from a named preset (core.config.PRESETS):
+                                          default | paper | paper_alg1
     --physvla.<field>=<value>             any PhysVLAConfig field (mode, cap, weighting, ...)
+
+Which configuration the flags build:
+- no preset and no mode: the `default` preset (the evidence-chosen default, docs/method.md);
+- `--physvla.mode=<mode>` without a preset: that mode of the paper (main-text settings, the
+  `paper` preset), so the paper's modes stay one flag away;
+- `--physvla.preset=<name>`: that preset; any other `--physvla.*` flag overrides its field.
 
 lerobot's own parser rejects unknown flags, so they are taken out of argv before it runs.
 """
@@ -11,7 +19,7 @@ from __future__ import annotations
 import dataclasses
 import typing
 
-from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, PhysVLAConfig, preset
 
 POSTPROCESS_FLAG = "--policy.postprocess"
 PREFIX = "--physvla."
@@ -67,8 +75,13 @@ def split_argv(argv: list[str]) -> tuple[str | None, dict[str, object], list[str
                 post = value
             else:
                 name = key[len(PREFIX):]
+                if name == "preset":
+                    if value not in PRESETS:
+                        raise FlagError(f"{key}={value}: unknown; choose one of {', '.join(PRESETS)}")
+                    overrides[name] = value
+                    continue
                 if name not in types:
-                    raise FlagError(f"{key}: unknown; PhysVLA fields are {', '.join(types)}")
+                    raise FlagError(f"{key}: unknown; PhysVLA fields are preset, {', '.join(types)}")
                 overrides[name] = _convert(name, value, types[name])
         else:
             rest.append(arg)
@@ -76,7 +89,12 @@ def split_argv(argv: list[str]) -> tuple[str | None, dict[str, object], list[str
 
 
 def build_config(overrides: dict[str, object]) -> PhysVLAConfig:
+    """The configuration the flags ask for (module doc: default preset, paper mode, or preset)."""
+    overrides = dict(overrides)
+    name = overrides.pop("preset", None)
+    if name is None:
+        name = "paper" if "mode" in overrides else DEFAULT_PRESET
     try:
-        return PhysVLAConfig(**overrides)
-    except ValueError as e:
+        return preset(name, **overrides)
+    except (ValueError, TypeError) as e:
         raise FlagError(str(e)) from None

@@ -1,7 +1,8 @@
 """The capped blender (eq. 2) and the safety net on every emitted action, per env (numba).
 
-`blend` mixes the policy's action with the corrected candidate, a = (1 - c) a_raw + c a_cand,
-applies the gripper rule and clips to the layout's bounds; `guard` is the do-no-harm net of
+`blend` mixes the policy's action with the corrected candidate, a = (1 - c) a_raw + c a_cand
+(c: the phase's authority, `PhysVLAConfig.caps`), applies the gripper rule and clips to the
+layout's bounds; `guard` is the do-no-harm net of
 `corrector.py`'s contract: rows that could not be corrected get the policy's action clipped
 to the bounds, or the layout's hold action where it is not finite.
 """
@@ -11,22 +12,30 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from lerobot_physvla.core.phase import APPROACH
+from lerobot_physvla.core.phase import APPROACH, GRASP
 from lerobot_physvla.core.state import GUARD_CLIPPED, GUARD_HELD, NONFINITE_OUTPUT, OK
 
 
 @njit(cache=True, error_model="numpy")
-def blend(a_raw, a_cand, phase, status, cap, grip, gripper_open, veto, low, high):
+def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, veto_height, height, low, high):
     """Eq. 2 with the gripper rule and clipping for every env whose status is OK; an env whose
-    result is not finite gets status NONFINITE_OUTPUT. Rows of other envs are left for `_guard`."""
+    result is not finite gets status NONFINITE_OUTPUT. Rows of other envs are left for `_guard`.
+
+    caps (4,): the authority c per phase. veto: the gripper rule `veto` sets the gripper to open
+    in full (never blended) in the approach phase, and in the grasp phase where the end-effector
+    is more than veto_height metres above the object's origin (height (B,), m; veto_height 0 = off).
+    """
     out = np.empty_like(a_raw)
     dev = np.zeros(a_raw.shape[0])
     for i in range(a_raw.shape[0]):
         if status[i] == OK:
             finite = True
+            cap = caps[phase[i]]
+            vetoed = veto and (phase[i] == APPROACH or (
+                veto_height > 0.0 and phase[i] == GRASP and height[i] > veto_height))
             for k in range(a_raw.shape[1]):
                 v = (1.0 - cap) * a_raw[i, k] + cap * a_cand[i, k]
-                if veto and k == grip and phase[i] == APPROACH:
+                if vetoed and k == grip:
                     v = gripper_open
                 v = min(max(v, low), high)
                 finite = finite and np.isfinite(v)

@@ -3,7 +3,8 @@
     approach   corrections.approach_veto
     grasp      corrections.grasp_guidance
     transport  corrections.transport_smoothing
-    place      corrections.place_deceleration        (eq. 5)
+    place      corrections.place_deceleration        (eq. 5), or corrections.place_redirect
+               (place_rule=redirect)
     (mode temporal: corrections.temporal_ema in every phase, instead of the above)
 
 The per-env arithmetic is compiled with numba (microseconds an env-step, where small-array numpy
@@ -25,9 +26,12 @@ import numpy as np
 from numba import njit
 
 from lerobot_physvla.core.corrections.approach_veto import approach_veto
-from lerobot_physvla.core.corrections.base import ACTIVE, D_OBJ_XY, D_TGT_XY, EEF, HIGH, LIFT, LOW, N_GEO, OBJ, TGT
+from lerobot_physvla.core.corrections.base import (
+    ACTIVE, D_OBJ_XY, D_TGT_XY, EEF, HIGH, LIFT, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_REDIRECT, TGT,
+)
 from lerobot_physvla.core.corrections.grasp_guidance import grasp_guidance
 from lerobot_physvla.core.corrections.place_deceleration import place_deceleration
+from lerobot_physvla.core.corrections.place_redirect import place_redirect
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
 from lerobot_physvla.core.corrections.transport_smoothing import transport_smoothing
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT, phase_of
@@ -61,6 +65,8 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
         grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == TRANSPORT:
         transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit)
+    elif phase == PLACE and p[PLACE_REDIRECT] > 0.5:
+        place_redirect(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == PLACE:
         place_deceleration(a_raw, a_phys, idx, geo, p, mem, commit)
     if commit:
@@ -85,13 +91,14 @@ def _compile(key: int):
 
         flat: (B, L) packed states; o: offsets of [valid, eef_pos, obj_pos, obj_rest_z, target_pos];
         idx, p: see corrections/base.py; mem: (B, N_MEM) per-env memory.
-        Returns (a_phys (B, A), phase (B,) int8, geo (B, 3) [d_obj_xy, d_tgt_xy, lift] m, status (B,) int8).
+        Returns (a_phys (B, A), phase (B,) int8, geo (B, 4) [d_obj_xy, d_tgt_xy, lift, height of the
+        end-effector above the object's origin] m, status (B,) int8).
         """
         key  # noqa: B018 - read, so it is in the closure and hence in numba's cache key
         b, a_dim = a_raw.shape
         a_phys = np.empty_like(a_raw)
         phase = np.full(b, -1, np.int8)
-        geo = np.full((b, 3), np.nan)  # d_obj_xy, d_tgt_xy, lift (m)
+        geo = np.full((b, 4), np.nan)  # d_obj_xy, d_tgt_xy, lift, eef height above the object (m)
         status = np.zeros(b, np.int8)
         g = np.empty(N_GEO)
         for i in range(b):
@@ -118,10 +125,11 @@ def _compile(key: int):
                 g[OBJ + k] = row[o[2] + k]
                 g[TGT + k] = row[o[4] + k]
             d_obj = np.hypot(g[EEF] - g[OBJ], g[EEF + 1] - g[OBJ + 1])
-            d_tgt = np.hypot(g[EEF] - g[TGT], g[EEF + 1] - g[TGT + 1])
             lift = g[OBJ + 2] - row[o[3]]
+            ref = OBJ if p[PHASE_REF_OBJECT] > 0.5 and lift > h_lift else EEF  # what d_tgt_xy measures from
+            d_tgt = np.hypot(g[ref] - g[TGT], g[ref + 1] - g[TGT + 1])
             g[D_OBJ_XY], g[D_TGT_XY], g[LIFT] = d_obj, d_tgt, lift
-            geo[i, 0], geo[i, 1], geo[i, 2] = d_obj, d_tgt, lift
+            geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3] = d_obj, d_tgt, lift, g[EEF + 2] - g[OBJ + 2]
             ph = phase_of(d_obj, d_tgt, lift, d_grasp, h_lift)  # eq. 3
             phase[i] = ph
             if temporal:

@@ -19,6 +19,10 @@ EL_MODES: tuple[str, ...] = ("soft", "gated", "off")
 WEIGHTINGS: tuple[str, ...] = ("joint_diag", "task_space")
 GRIPPER_RULES: tuple[str, ...] = ("blend", "veto")
 CHUNK_MODES: tuple[str, ...] = ("all", "first")
+PLACE_RULES: tuple[str, ...] = ("decelerate", "redirect")
+PHASE_REFS: tuple[str, ...] = ("eef", "object")
+LOWPASS_RULES: tuple[str, ...] = ("off", "adaptive")
+PHASE_NAMES: tuple[str, ...] = ("approach", "grasp", "transport", "place")
 
 
 @dataclass(frozen=True)
@@ -128,6 +132,26 @@ class PhysVLAConfig:
             veto (the approach veto sets the gripper channel to open in full).
         chunk: for (B, T, A) action chunks: correct all steps with the current state, or only
             the first (the one about to execute) and pass the rest through.
+
+    Beyond the paper (docs/method.md "Options beyond the paper"; defaults keep the paper's method):
+        phase_caps: per-phase authority (approach, grasp, transport, place) replacing the one cap c
+            of eq. (2) in that phase; empty = c in every phase.
+        veto_height_m: with gripper_rule=veto, a close commanded in the grasp phase while the
+            end-effector is more than this above the object's origin is vetoed too (the fingers are
+            above the object: no grasp can close on it), metres; 0 = approach phase only.
+        place_rule: decelerate (eq. 5) | redirect (place: the horizontal channels steer the held
+            object's centre over the target's, redirect_gain (p_tgt - p_obj) / scale).
+        redirect_gain: gain of the place redirection, action units per action unit of error (1 =
+            close the whole horizontal error in one step if the controller tracked perfectly).
+        phase_ref: what d_tgt_xy of eq. (3) measures from once the object is lifted: eef (paper)
+            | object (the held object's centre; a rim grasp holds it centimetres off the hand).
+        lowpass: off | adaptive: a low-pass on the executed position channels whose strength
+            follows the policy's own step-to-step roughness (0 for a smooth policy).
+        lowpass_phases: the phases (comma-separated names) where the low-pass acts.
+        lowpass_alpha_max: the low-pass's strongest smoothing factor (EMA alpha) in [0, 1).
+        lowpass_rough_lo, lowpass_rough_hi: roughness (action units: the estimated standard
+            deviation of the policy's step-to-step noise, per channel) at which the low-pass starts
+            acting and at which it reaches alpha_max.
     """
 
     mode: str = "phys_el"
@@ -148,6 +172,16 @@ class PhysVLAConfig:
     dls_damping: float = 1e-2
     gripper_rule: str = "blend"
     chunk: str = "all"
+    phase_caps: tuple[float, ...] = ()
+    veto_height_m: float = 0.0
+    place_rule: str = "decelerate"
+    redirect_gain: float = 0.5
+    phase_ref: str = "eef"
+    lowpass: str = "off"
+    lowpass_phases: str = "approach,grasp,transport,place"
+    lowpass_alpha_max: float = 0.8
+    lowpass_rough_lo: float = 0.05
+    lowpass_rough_hi: float = 0.2
 
     def __post_init__(self) -> None:
         self.validate()
@@ -159,6 +193,9 @@ class PhysVLAConfig:
             ("weighting", self.weighting, WEIGHTINGS),
             ("gripper_rule", self.gripper_rule, GRIPPER_RULES),
             ("chunk", self.chunk, CHUNK_MODES),
+            ("place_rule", self.place_rule, PLACE_RULES),
+            ("phase_ref", self.phase_ref, PHASE_REFS),
+            ("lowpass", self.lowpass, LOWPASS_RULES),
         ):
             if value not in allowed:
                 raise ValueError(f"physvla: unknown {name} {value!r}; choose one of {', '.join(allowed)}")
@@ -178,6 +215,29 @@ class PhysVLAConfig:
             raise ValueError(f"physvla: need 0 <= eps_nm < r0_nm, got {self.eps_nm}, {self.r0_nm}")
         if len(self.grasp_offset_m) != 3:
             raise ValueError(f"physvla: grasp_offset_m needs 3 values, got {self.grasp_offset_m}")
+        if len(self.phase_caps) not in (0, 4) or not all(0.0 <= c <= 1.0 for c in self.phase_caps):
+            raise ValueError("physvla: phase_caps needs 4 values in [0, 1] (approach, grasp, transport, place) "
+                             f"or none, got {self.phase_caps}")
+        unknown = [p for p in self.lowpass_phases.replace(" ", "").split(",") if p and p not in PHASE_NAMES]
+        if unknown:
+            raise ValueError(f"physvla: unknown lowpass phase(s) {unknown}; choose from {', '.join(PHASE_NAMES)}")
+        if not 0.0 <= self.lowpass_alpha_max < 1.0:
+            raise ValueError(f"physvla: lowpass_alpha_max must lie in [0, 1), got {self.lowpass_alpha_max}")
+        if not 0.0 <= self.lowpass_rough_lo < self.lowpass_rough_hi:
+            raise ValueError("physvla: need 0 <= lowpass_rough_lo < lowpass_rough_hi, got "
+                             f"{self.lowpass_rough_lo}, {self.lowpass_rough_hi}")
+        if not (self.veto_height_m >= 0 and self.redirect_gain > 0):
+            raise ValueError("physvla: need veto_height_m >= 0 and redirect_gain > 0")
+
+    @property
+    def caps(self) -> tuple[float, float, float, float]:
+        """The blender's authority per phase (approach, grasp, transport, place)."""
+        return tuple(self.phase_caps) if self.phase_caps else (self.cap,) * 4
+
+    @property
+    def lowpass_mask(self) -> tuple[bool, bool, bool, bool]:
+        names = set(self.lowpass_phases.replace(" ", "").split(","))
+        return tuple(p in names for p in PHASE_NAMES)
 
     @property
     def action_layout(self) -> ActionLayout:
@@ -191,6 +251,7 @@ class PhysVLAConfig:
         if isinstance(self.layout, ActionLayout):
             d["layout"] = dataclasses.asdict(self.layout)
         d["grasp_offset_m"] = list(self.grasp_offset_m)
+        d["phase_caps"] = list(self.phase_caps)
         return d
 
     @classmethod
@@ -204,7 +265,31 @@ class PhysVLAConfig:
             lay["pos"] = tuple(lay["pos"])
             lay["rot"] = tuple(lay.get("rot", ()))
             d["layout"] = ActionLayout(**lay)
-        if "grasp_offset_m" in d:
-            d["grasp_offset_m"] = tuple(d["grasp_offset_m"])
+        for key in ("grasp_offset_m", "phase_caps"):
+            if key in d:
+                d[key] = tuple(d[key])
         return cls(**d)
 
+
+
+# Named presets. `default` is what `--policy.postprocess=physvla` applies with no further flag,
+# chosen by measurement (eval/results/efficacy); the paper's two readings stay one flag away.
+PRESETS: dict[str, PhysVLAConfig] = {
+    # the main text: eq. (2), a = (1 - c) a_raw + c a_B with c = 0.05, Phys + Dyn (phys_el)
+    "paper": PhysVLAConfig(mode="phys_el"),
+    # the supplement's Algorithm 1: Phys executes a_phys in full, Dyn blends w a_phys + (1 - w) a_raw
+    "paper_alg1": PhysVLAConfig(mode="phys_el", cap=1.0),
+    # beyond the paper (docs/method.md): only corrections that are right from the state alone
+    "default": PhysVLAConfig(
+        mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
+        place_rule="redirect", phase_ref="object", lowpass="adaptive",
+    ),
+}
+DEFAULT_PRESET = "default"
+
+
+def preset(name: str = DEFAULT_PRESET, **overrides) -> PhysVLAConfig:
+    """A named preset (PRESETS) with fields overridden, e.g. preset("paper", mode="phys")."""
+    if name not in PRESETS:
+        raise ValueError(f"physvla: unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
+    return PRESETS[name].replace(**overrides)

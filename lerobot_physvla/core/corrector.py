@@ -33,13 +33,15 @@ from lerobot_physvla.core.branch_a import phase_step
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrections.base import N_MEM, channel_index, params
 from lerobot_physvla.core.dynamics import ELGate, el_gate
+from lerobot_physvla.core.lowpass import N_LP_MEM, adaptive_lowpass
 from lerobot_physvla.core.state import (
     GUARD_CLIPPED, GUARD_HELD, GUARDS, INVALID_DT, OK, REASONS, SINGULAR, PhysState, field_offsets, n_joints_from_size,
 )
 from lerobot_physvla.core.tick import (
-    D_DEV, D_GUARD, D_LIFT, D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, FP_B, FP_CAP, FP_D_GRASP,
-    FP_GRIP_OPEN, FP_H_LIFT, FP_HIGH, FP_LOW, IP_B, IP_BASELINE, IP_BRANCH_B, IP_FLAGS, IP_GRIP, IP_N, IP_PHASE,
-    IP_POS, IP_TEMPORAL, IP_VETO, N_DIAG, N_FP, N_IP, correct_tick, record_tick,
+    D_DEV, D_GUARD, D_LIFT, D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, FP_B, FP_CAP, FP_CAPS, FP_D_GRASP,
+    FP_GRIP_OPEN, FP_H_LIFT, FP_HIGH, FP_LOW, FP_LP, FP_VETO_H, IP_B, IP_BASELINE, IP_BRANCH_B, IP_FLAGS, IP_GRIP,
+    IP_LOWPASS, IP_LP_MASK, IP_N, IP_PHASE, IP_POS, IP_TEMPORAL, IP_VETO, N_DIAG, N_FP, N_IP, correct_tick,
+    record_tick,
 )
 
 
@@ -113,6 +115,7 @@ class Corrector:
         self._idx = channel_index(lay)
         self._p_a = params(self.cfg, lay)
         self._mem = np.zeros((b, N_MEM))  # per-env memory of the corrections (EMA), corrections/base.py
+        self._lp_mem = np.zeros((b, N_LP_MEM))  # per-env memory of the adaptive low-pass (lowpass.py)
         self._absolute = lay.absolute_mask
         self._hold0 = lay.hold()
         self._last_out = np.zeros((b, lay.dim))  # the action each env emitted last (the hold of absolute channels)
@@ -134,7 +137,7 @@ class Corrector:
 
     def _warm_key(self):
         c = self.cfg
-        return c.mode, c.el_mode, c.weighting, c.gripper_rule, c.chunk, self.profile
+        return c.mode, c.el_mode, c.weighting, c.gripper_rule, c.chunk, c.lowpass, self.profile
 
     def warm_up(self) -> None:
         """Run every kernel of this mode once on a synthetic state and forget it, so that no
@@ -162,6 +165,7 @@ class Corrector:
         """Forget per-env memory (EMAs, last action) for env_ids (all if None), e.g. at an episode start."""
         sel = slice(None) if env_ids is None else np.asarray(env_ids)
         self._mem[sel] = 0.0
+        self._lp_mem[sel] = 0.0
         self._has_last[sel] = False
 
     # ------------------------------------------------------------------ API boundary
@@ -251,7 +255,10 @@ class Corrector:
         fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_CAP] = cfg.delta_grasp_m, cfg.h_lift_m, cfg.cap
         fp[FP_GRIP_OPEN], fp[FP_LOW], fp[FP_HIGH] = lay.gripper_open, lay.low, lay.high
         if self.branch_b is not None:
-            fp[FP_B:N_FP] = self.branch_b.params
+            fp[FP_B:FP_CAPS] = self.branch_b.params
+        fp[FP_CAPS:FP_VETO_H] = cfg.caps
+        fp[FP_VETO_H] = cfg.veto_height_m
+        fp[FP_LP:N_FP] = cfg.lowpass_alpha_max, cfg.lowpass_rough_lo, cfg.lowpass_rough_hi
         return fp
 
     def _int_params(self, n: int) -> np.ndarray:
@@ -269,6 +276,8 @@ class Corrector:
             ip[IP_GRIP], ip[IP_TEMPORAL], ip[IP_BASELINE] = self._grip, temporal, cfg.mode == "baseline"
             ip[IP_BRANCH_B] = self.branch_b is not None
             ip[IP_VETO] = cfg.gripper_rule == "veto" and not temporal
+            ip[IP_LOWPASS] = cfg.lowpass == "adaptive" and cfg.mode in ("phys", "phys_el")
+            ip[IP_LP_MASK:N_IP] = cfg.lowpass_mask
             self._params[n] = ip
         return ip
 
@@ -296,8 +305,9 @@ class Corrector:
         if self.profile:
             out, events = self._staged(a_raw, flat, ip, commit)
         else:
-            out, events = correct_tick(a_raw, flat, ip, self._fp, self._idx, self._p_a, self._mem, self._absolute,
-                                       self._hold0, self._last_out, self._has_last, commit, self.diag_buffer)
+            out, events = correct_tick(a_raw, flat, ip, self._fp, self._idx, self._p_a, self._mem, self._lp_mem,
+                                       self._absolute, self._hold0, self._last_out, self._has_last, commit,
+                                       self.diag_buffer)
             self._t_a = self._t_b = float("nan")  # not timed apart (see `profile`)
         if commit:
             self._diag, self._has_diag = None, True
@@ -326,10 +336,13 @@ class Corrector:
         else:
             if self.branch_b is not None:
                 a_phys, w, r = el_gate(a_raw, a_phys, flat, ip[IP_B:IP_N], ip[IP_N], ip[IP_POS:IP_FLAGS],
-                                       fp[FP_B:N_FP], ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
-            cap = 1.0 if temporal else cfg.cap
-            out, dev = blend(a_raw, a_phys, phase, status, cap, self._grip, fp[FP_GRIP_OPEN], bool(ip[IP_VETO]),
-                             fp[FP_LOW], fp[FP_HIGH])
+                                       fp[FP_B:FP_CAPS], ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
+            caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO_H]
+            out, dev = blend(a_raw, a_phys, phase, status, caps, self._grip, fp[FP_GRIP_OPEN], bool(ip[IP_VETO]),
+                             fp[FP_VETO_H], geo[:, 3], fp[FP_LOW], fp[FP_HIGH])
+            if ip[IP_LOWPASS]:
+                adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
+                                 fp[FP_LP + 1], fp[FP_LP + 2], self._lp_mem, commit, dev)
         lay = self.layout
         g = guard(out, a_raw, status, baseline, self._absolute, self._hold0, lay.low, lay.high, self._last_out,
                   self._has_last, commit)

@@ -1,7 +1,7 @@
 """One control tick of the whole corrector, B envs, as one compiled call.
 
     phase + Branch A (branch_a.phase_step) -> Branch B (dynamics.el_gate) -> blender (eq. 2,
-    blend.blend) -> safety net (blend.guard)
+    blend.blend) -> adaptive low-pass (lowpass.adaptive_lowpass, when on) -> safety net (blend.guard)
 
 The stages are the same numba functions the corrector can also run one by one (its `profile`
 mode, which times Branch A and Branch B apart); fused, a tick costs one dispatch (~3 us of
@@ -14,9 +14,11 @@ into it (`TICK_SOURCE_KEY`), so editing any stage compiles it afresh.
 Integer parameters `ip` (int64):  [0:5] phase offsets (valid, eef_pos, obj_pos, obj_rest_z,
 target_pos), [5:11] Branch B offsets (dt, qdot, M, bias, tau, J_pos), [11] n joints, [12:15]
 position channels, [15:17] Branch B flags (el_mode, weighting), [17] gripper channel (-1: none),
-[18] temporal, [19] baseline, [20] Branch B on, [21] gripper veto.
+[18] temporal, [19] baseline, [20] Branch B on, [21] gripper veto, [22] low-pass on, [23:27] the
+phases where the low-pass acts (0/1 each).
 Float parameters `fp`: [0] delta_grasp (m), [1] h_lift (m), [2] cap c, [3] gripper open value,
-[4] low, [5] high (action units), [6:10] Branch B [metres_per_unit, damping, eps (N m), r0 (N m)].
+[4] low, [5] high (action units), [6:10] Branch B [metres_per_unit, damping, eps (N m), r0 (N m)],
+[10:14] the authority per phase, [14] veto height (m), [15:18] low-pass [alpha_max, lo, hi].
 """
 
 from __future__ import annotations
@@ -29,17 +31,20 @@ from numba import njit
 from lerobot_physvla.core.blend import blend, guard
 from lerobot_physvla.core.branch_a import SOURCE_FILES, phase_step, source_key
 from lerobot_physvla.core.dynamics import el_gate
+from lerobot_physvla.core.lowpass import adaptive_lowpass
 from lerobot_physvla.core.state import INVALID_DT, OK, SINGULAR
 
 _CORE = Path(__file__).resolve().parent
-TICK_SOURCE_FILES = (*SOURCE_FILES, Path(__file__).resolve(), _CORE / "blend.py", _CORE / "dynamics.py")
+TICK_SOURCE_FILES = (*SOURCE_FILES, Path(__file__).resolve(), _CORE / "blend.py", _CORE / "dynamics.py",
+                     _CORE / "lowpass.py")
 TICK_SOURCE_KEY = source_key(TICK_SOURCE_FILES)
 
 # layout of the integer parameters (module doc)
-IP_PHASE, IP_B, IP_N, IP_POS, IP_FLAGS, IP_GRIP, IP_TEMPORAL, IP_BASELINE, IP_BRANCH_B, IP_VETO, N_IP = (
-    0, 5, 11, 12, 15, 17, 18, 19, 20, 21, 22)
+(IP_PHASE, IP_B, IP_N, IP_POS, IP_FLAGS, IP_GRIP, IP_TEMPORAL, IP_BASELINE, IP_BRANCH_B, IP_VETO, IP_LOWPASS,
+ IP_LP_MASK, N_IP) = (0, 5, 11, 12, 15, 17, 18, 19, 20, 21, 22, 23, 27)
 # layout of the float parameters
-FP_D_GRASP, FP_H_LIFT, FP_CAP, FP_GRIP_OPEN, FP_LOW, FP_HIGH, FP_B, N_FP = 0, 1, 2, 3, 4, 5, 6, 10
+(FP_D_GRASP, FP_H_LIFT, FP_CAP, FP_GRIP_OPEN, FP_LOW, FP_HIGH, FP_B, FP_CAPS, FP_VETO_H, FP_LP, N_FP) = (
+    0, 1, 2, 3, 4, 5, 6, 10, 14, 15, 18)
 # columns of the diagnostics buffer (B, N_DIAG + A): phase (-1 where passed through), status
 # (REASONS code), guard (GUARDS code), d_obj_xy, d_tgt_xy, lift (m), |r_EL| (N m), r_energy (W),
 # deviation max|a - a_raw| (action units), sum of Branch B weights, then the A weights
@@ -71,8 +76,8 @@ def record_tick(diag, phase, status, g, geo, r, dev, w, commit):
 
 def _compile(key: int):
     @njit(cache=True, error_model="numpy")
-    def correct_tick(a_raw, flat, ip, fp, idx, p_a, mem, absolute, hold0, last, has_last, commit, diag):
-        """Corrected actions (B, A) for one tick.
+    def correct_tick(a_raw, flat, ip, fp, idx, p_a, mem, lp_mem, absolute, hold0, last, has_last, commit, diag):
+        """Corrected actions (B, A) for one tick (mem: Branch A's memory, lp_mem: the low-pass's).
 
         diag (B, N_DIAG + A), columns above: the guard column is written at every call, the
         others on commit only (a chunk's first step, or a single step).
@@ -95,9 +100,12 @@ def _compile(key: int):
             if ip[IP_BRANCH_B] != 0:
                 a_phys, w, r = el_gate(a_raw, a_phys, flat, ip[IP_B:IP_N], ip[IP_N], ip[IP_POS:IP_FLAGS], fp[FP_B:N_FP],
                                        ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
-            cap = 1.0 if temporal else fp[FP_CAP]  # the temporal baseline is applied in full
-            out, dev = blend(a_raw, a_phys, phase, status, cap, ip[IP_GRIP], fp[FP_GRIP_OPEN], ip[IP_VETO] != 0,
-                             fp[FP_LOW], fp[FP_HIGH])
+            caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO_H]  # the temporal baseline is applied in full
+            out, dev = blend(a_raw, a_phys, phase, status, caps, ip[IP_GRIP], fp[FP_GRIP_OPEN], ip[IP_VETO] != 0,
+                             fp[FP_VETO_H], geo[:, 3], fp[FP_LOW], fp[FP_HIGH])
+            if ip[IP_LOWPASS] != 0:
+                adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
+                                 fp[FP_LP + 1], fp[FP_LP + 2], lp_mem, commit, dev)
         g = guard(out, a_raw, status, baseline, absolute, hold0, fp[FP_LOW], fp[FP_HIGH], last, has_last, commit)
         return out, record_tick(diag, phase, status, g, geo, r, dev, w, commit)
 

@@ -25,7 +25,7 @@ from lerobot.lerobot_types import EnvTransition, TransitionKey
 from lerobot.processor.pipeline import ProcessorStep, ProcessorStepRegistry
 from lerobot.utils.constants import OBS_PREFIX
 
-from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.core.state import field_offsets
 
@@ -184,11 +184,12 @@ class PhysVLACorrectorStep(ProcessorStep):
     counted in `passthrough_counts` and warned once.
 
     Attributes:
-        config: PhysVLAConfig fields (mode and every hyperparameter), JSON-serialisable.
+        config: PhysVLAConfig fields (mode and every hyperparameter), JSON-serialisable; by
+            default the `default` preset (core.config.PRESETS).
         bus: name of the StateBus to read.
     """
 
-    config: dict[str, Any] = field(default_factory=lambda: PhysVLAConfig().to_dict())
+    config: dict[str, Any] = field(default_factory=lambda: PRESETS[DEFAULT_PRESET].to_dict())
     bus: str = "default"
     passthrough_counts: Counter = field(default_factory=Counter, init=False, repr=False)
     listeners: list = field(default_factory=list, init=False, repr=False)

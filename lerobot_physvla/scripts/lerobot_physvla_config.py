@@ -1,7 +1,11 @@
 """`lerobot-physvla-config`: add the corrector to a policy checkpoint's postprocessor.
 
-    lerobot-physvla-config POLICY_DIR [--mode phys_el] [--physvla.<field>=<value> ...]
+    lerobot-physvla-config POLICY_DIR [--preset default] [--mode phys_el] [--physvla.<field>=<value> ...]
     lerobot-physvla-config --write-presets policies/physvla_configs
+
+With no flag it adds the `default` preset (the evidence-chosen default, docs/method.md); `--mode`
+alone gives that mode of the paper (main-text settings), `--preset` any named preset (flags as
+in lerobot_physvla.flags).
 
 Loads POLICY_DIR/policy_postprocessor.json with lerobot's own PolicyProcessorPipeline, appends
 (or replaces) the PhysVLACorrectorStep, and saves it back with `save_pretrained`: the entry is
@@ -15,7 +19,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from lerobot_physvla.core.config import MODES, PhysVLAConfig
+from lerobot_physvla.core.config import MODES, PRESETS, PhysVLAConfig
 
 POSTPROCESSOR = "policy_postprocessor.json"
 
@@ -57,18 +61,25 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(prog="lerobot-physvla-config", description=__doc__.split("\n\n")[0])
     ap.add_argument("policy_dir", nargs="?", help="a local policy checkpoint directory")
     ap.add_argument("--mode", choices=MODES, default=None, help="shorthand for --physvla.mode")
-    ap.add_argument("--write-presets", metavar="DIR", help="write one postprocessor per paper mode into DIR/<mode>/")
+    ap.add_argument("--preset", choices=tuple(PRESETS), default=None, help="shorthand for --physvla.preset")
+    ap.add_argument("--write-presets", metavar="DIR",
+                    help="write one postprocessor per paper mode (DIR/<mode>/) and per preset (DIR/preset_<name>/)")
     args = ap.parse_args(rest)
     if args.mode:
         overrides["mode"] = args.mode
+    if args.preset:
+        overrides["preset"] = args.preset
     try:
         cfg = build_config(overrides)
     except FlagError as e:
         print(f"lerobot-physvla-config: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None
     if args.write_presets:
-        for mode in MODES:
-            path = add_corrector(Path(args.write_presets) / mode, cfg.replace(mode=mode))
+        for mode in MODES:  # the paper's four modes, main-text settings
+            path = add_corrector(Path(args.write_presets) / mode, build_config({**overrides, "mode": mode}))
+            print(f"wrote {path}")
+        for name in PRESETS:
+            path = add_corrector(Path(args.write_presets) / f"preset_{name}", build_config({**overrides, "preset": name}))
             print(f"wrote {path}")
     elif args.policy_dir:
         print(f"wrote {add_corrector(args.policy_dir, cfg)}")

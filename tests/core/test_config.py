@@ -37,3 +37,23 @@ def test_layout_validation():
         ActionLayout(dim=3, pos=(0, 1, 3))
     with pytest.raises(ValueError):
         ActionLayout(dim=4, pos=(0, 1, 2), gripper=2)
+
+
+def test_presets_follow_the_paper_and_the_default_is_built_from_the_options():
+    from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, preset
+
+    assert PRESETS["paper"] == PhysVLAConfig(mode="phys_el")  # main text: eq. 2, c = 0.05
+    assert PRESETS["paper_alg1"].cap == 1.0 and PRESETS["paper_alg1"].mode == "phys_el"
+    assert preset("paper", mode="phys") == PhysVLAConfig(mode="phys")
+    assert DEFAULT_PRESET in PRESETS
+    with pytest.raises(ValueError, match="unknown preset"):
+        preset("turbo")
+
+
+@pytest.mark.parametrize("bad", [{"phase_caps": (0.1, 0.2)}, {"phase_caps": (0, 0, 0, 2)},
+                                 {"lowpass_phases": "approach,lunch"}, {"lowpass_alpha_max": 1.0},
+                                 {"lowpass_rough_lo": 0.3, "lowpass_rough_hi": 0.2}, {"place_rule": "throw"},
+                                 {"phase_ref": "elbow"}, {"veto_height_m": -0.1}])
+def test_bad_options_are_rejected(bad):
+    with pytest.raises(ValueError):
+        PhysVLAConfig(**bad)

@@ -122,3 +122,17 @@ def test_editing_one_correction_file_recompiles_the_cached_kernel(tmp_path):
     f.write_text(f.read_text().replace("beta, scale = p[BETA], p[METRES_PER_UNIT]",
                                        "beta, scale = 1.0, p[METRES_PER_UNIT]"))
     assert probe() == pytest.approx(0.4)  # the edit is in effect, not a stale compiled kernel
+
+
+def test_place_redirect_steers_the_held_object_over_the_target():
+    from lerobot_physvla.core.corrections.base import TGT
+    from lerobot_physvla.core.corrections.place_redirect import place_redirect
+
+    idx, geo, p, mem = ctx(place_rule="redirect", redirect_gain=0.5)
+    geo[OBJ:OBJ + 3] = (0.10, 0.02, 0.95)  # the held object, 4.7 cm off the hand on a rim grasp
+    geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
+    a = np.array([0.9, 0.9, -0.3, 0.1, 0.2, 0.3, 1.0])
+    out = run(place_redirect, a, idx, geo, p, mem)
+    # x, y: 0.5 * (target - object) / 0.05 m per unit; z, rotation and gripper are the policy's
+    np.testing.assert_allclose(out[:2], 0.5 * np.array([0.02, -0.03]) / 0.05)
+    np.testing.assert_array_equal(out[2:], a[2:])

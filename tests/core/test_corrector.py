@@ -192,3 +192,37 @@ def test_nonfinite_actions_become_the_hold_action(bad, idx):
     np.testing.assert_array_equal(out[0, :6], np.zeros(6))  # delta channels hold still
     assert out[0, 6] == first[0, 6]  # the gripper repeats its last command
     assert c.passthrough_counts["nonfinite_action"] == 1 and c.guard_counts["held_nonfinite_action"] == 1
+
+
+def test_phase_caps_replace_the_cap_per_phase():
+    st = make_state(eef=(0, 0, 1.0), obj=(0.01, -0.02, 0.95))  # grasp phase
+    cand = RAW.copy()
+    cand[0, :3] = 0.5 * np.array([0.2, -0.4, -1.0]) + 0.5 * RAW[0, :3]
+    out = Corrector(PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.4, 0.0, 0.0)))(RAW, st)
+    np.testing.assert_allclose(out, 0.6 * RAW + 0.4 * cand)
+    off = Corrector(PhysVLAConfig(mode="phys", phase_caps=(1.0, 0.0, 1.0, 1.0)))(RAW, st)
+    np.testing.assert_array_equal(off, RAW)
+
+
+def test_full_veto_with_height_vetoes_a_close_above_the_object_in_grasp():
+    close = RAW.copy()
+    close[0, 6] = 1.0  # robosuite: +1 closes
+    cfg = PhysVLAConfig(mode="phys", phase_caps=(0.0,) * 4, gripper_rule="veto", veto_height_m=0.06)
+    high = make_state(eef=(0.01, 0, 1.0), obj=(0.0, 0.0, 0.9))  # grasp phase, hand 10 cm above
+    low = make_state(eef=(0.01, 0, 0.94), obj=(0.0, 0.0, 0.9))  # 4 cm above: a grasp can close
+    far = make_state(eef=(0.3, 0, 0.94), obj=(0.0, 0.0, 0.9))  # approach: vetoed in full, cap 0 or not
+    assert Corrector(cfg)(close, high)[0, 6] == -1.0
+    assert Corrector(cfg)(close, low)[0, 6] == 1.0
+    assert Corrector(cfg)(close, far)[0, 6] == -1.0
+    assert Corrector(cfg.replace(veto_height_m=0.0))(close, high)[0, 6] == 1.0  # 0: approach only
+
+
+def test_phase_ref_object_measures_the_place_distance_from_the_held_object():
+    # lifted object 8 cm off the hand, right over the target; the hand itself is 8 cm away from it
+    st = make_state(eef=(0.10, 0.0, 1.0), obj=(0.02, 0.0, 0.95), target=(0.02, 0.0, 0.9), lift=0.05)
+    c_eef = Corrector(PhysVLAConfig(mode="phys"))
+    c_obj = Corrector(PhysVLAConfig(mode="phys", phase_ref="object"))
+    c_eef(RAW, st)
+    c_obj(RAW, st)
+    assert c_eef.last.phase[0] == Phase.TRANSPORT and c_eef.last.d_tgt_xy[0] == pytest.approx(0.08)
+    assert c_obj.last.phase[0] == Phase.PLACE and c_obj.last.d_tgt_xy[0] == pytest.approx(0.0)

@@ -36,14 +36,18 @@ EXTREME = [0.0, -0.0, -1.0, -1e-300, 1e-300, 1e300, -1e300, 1e30, np.nan, np.inf
     scale=st_.sampled_from([0.5, 3.0, 1e6]),
     bad_action=st_.sampled_from([None, np.nan, np.inf, -np.inf]),
     seed=st_.integers(0, 100),
+    beyond=st_.booleans(),
 )
 def test_any_state_field_and_action_gives_a_finite_in_bounds_action(
-    field, value, where, whole_field, mode, layout, weighting, el, grip, chunk, scale, bad_action, seed
+    field, value, where, whole_field, mode, layout, weighting, el, grip, chunk, scale, bad_action, seed, beyond
 ):
     lay = LAYOUTS[layout]
     n = lay.dim if weighting == "joint_diag" else 7  # joint_diag needs one joint per action entry
     cfg = PhysVLAConfig(mode=mode, layout=layout, weighting=weighting, el_mode=el, gripper_rule=grip,
                         chunk=chunk or "all", cap=1.0 if seed % 2 else 0.05)
+    if beyond:  # the options beyond the paper (those of the default preset, and per-phase authority)
+        cfg = cfg.replace(phase_caps=(0.0, 0.5, 1.0, 1.0), veto_height_m=0.06, place_rule="redirect",
+                          phase_ref="object", lowpass="adaptive")
     b = 3
     c = Corrector(cfg, b)
     rng = np.random.default_rng(seed)

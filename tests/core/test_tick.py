@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.config import PRESETS, PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
 
 from conftest import make_state
@@ -15,6 +15,8 @@ CONFIGS = [
     PhysVLAConfig(mode="phys_el"),
     PhysVLAConfig(mode="phys_el", weighting="task_space", el_mode="gated", cap=1.0),
     PhysVLAConfig(mode="phys_el", chunk="first"),
+    PRESETS["default"],
+    PRESETS["default"].replace(mode="phys_el", phase_caps=(0.2, 0.5, 1.0, 1.0), lowpass_phases="grasp,place"),
 ]
 
 
@@ -35,7 +37,7 @@ def _episode(seed: int, b: int = 4, steps: int = 40):
     return out
 
 
-@pytest.mark.parametrize("cfg", CONFIGS, ids=lambda c: f"{c.mode}-{c.weighting}-{c.chunk}")
+@pytest.mark.parametrize("cfg", CONFIGS, ids=lambda c: f"{c.mode}-{c.weighting}-{c.chunk}-{c.lowpass}-{c.place_rule}")
 @pytest.mark.parametrize("chunked", [False, True])
 def test_fused_tick_equals_the_staged_kernels(cfg, chunked):
     fused, staged = Corrector(cfg, 4), Corrector(cfg, 4, profile=True)

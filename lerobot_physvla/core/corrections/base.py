@@ -32,8 +32,8 @@ D_OBJ_XY, D_TGT_XY, LIFT = 9, 10, 11  # m
 N_GEO = 12
 # p
 (BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M, LIFT_BIAS_U, ALPHA_TRANSPORT, D_THRESH_M, METRES_PER_UNIT,
- GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL) = range(12)
-N_PARAMS = 12
+ GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL, PLACE_REDIRECT, REDIRECT_GAIN, PHASE_REF_OBJECT) = range(15)
+N_PARAMS = 15
 # mem
 EMA = 0  # 3 entries: x, y, z, action units
 ACTIVE = 3  # 1.0 once the EMA holds a value (transport: the previous step was in transport)
@@ -57,4 +57,7 @@ def params(cfg: PhysVLAConfig, layout: ActionLayout) -> np.ndarray:
     p[GRIPPER_OPEN] = layout.gripper_open
     p[LOW], p[HIGH] = layout.low, layout.high
     p[ALPHA_TEMPORAL] = cfg.alpha_temporal
+    p[PLACE_REDIRECT] = cfg.place_rule == "redirect"
+    p[REDIRECT_GAIN] = cfg.redirect_gain
+    p[PHASE_REF_OBJECT] = cfg.phase_ref == "object"
     return p
