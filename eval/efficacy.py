@@ -7,10 +7,14 @@ Stages (each resumable; units on disk are skipped):
 - ablation: each Branch A correction alone (the paper's four at full authority, and the options
   beyond the paper) on the clean expert (harm) and on the backbone whose failure it targets,
   LIBERO init states 0-1 of the design block (n = 20 per cell: a screen).
-- design: baseline, the candidate default and the paper's readings on init states 0-4 (n = 50).
+- design: baseline and the candidate default on init states 0-4 (n = 50); temporal and the
+  main-text reading on these seeds are eval/results/table2.
 - confirm: the same configurations on init states 5-9 (n = 50), a block no decision looked at.
 - lift: robosuite Lift (and Fetch) grasp-phase noise at sigma 0 and 0.40, seeds 7-26 (design)
-  and 100-119 (confirmation): the jerk-degradation ratio with success unchanged.
+  and 100-119 (confirmation): the jerk-degradation ratio with success unchanged; and Lift +
+  place-on-plate with a persistent place bias (the paper's 35 % -> 95 % study), same seeds.
+- lowpass: the adaptive low-pass's strongest smoothing (alpha_max) on the design seeds 7-26:
+  every value of LOWPASS_ALPHAS on Fetch, 0.8 on Lift (how the default's 0.6 was chosen).
 
 Outcomes are paired against baseline on the same (task, init state, expert seed): won / lost /
 both / neither and the paired difference in success with a 95 % interval (normal approximation
@@ -64,6 +68,10 @@ COMPARED = {
     "paper (eq. 2, c=0.05)": PRESETS["paper"],
     "paper Alg. 1 (c=1)": PRESETS["paper_alg1"],
 }
+# on the design block only the candidates run: temporal and the main-text reading on these seeds
+# are eval/results/table2 (same seeds, same code path)
+DESIGN = {name: COMPARED[name] for name in ("baseline", "default")}
+LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 LIFT_DESIGN, LIFT_CONFIRM = 7, 100  # first seeds of the Lift / Fetch blocks (20 trials each)
 
@@ -105,13 +113,124 @@ PAIRED_HEAD = ["| backbone / configuration | pairs | baseline | this | paired di
                "neither | jerk / baseline's | tasks that lost |", "|---|---|---|---|---|---|---|---|"]
 
 
+def _block(records, seeds, scene="libero_spatial"):
+    return [r for r in records if r["scene"] == scene and r["seed"] in seeds]
+
+
+def _lift_rows(records, first: int) -> list[str]:
+    rows = []
+    for sim in ("lift", "fetch"):
+        recs = [r for r in records if r["backbone"].startswith(sim) and first <= r["seed"] < first + 20]
+        if not recs:
+            continue
+        agg = {}
+        for c in ("baseline", "default"):
+            for sg in ("0.00", "0.40"):
+                sel = [r for r in recs if r["config"] == c and r["backbone"] == f"{sim} sigma={sg}"]
+                if sel:
+                    agg[(c, sg)] = (sum(r["success"] for r in sel), len(sel), float(np.mean([r["mean_jerk"] for r in sel])))
+        if len(agg) < 4:
+            continue
+        deg = {c: (agg[(c, "0.40")][2] - agg[(c, "0.00")][2]) / agg[(c, "0.00")][2] for c in ("baseline", "default")}
+        ratio = deg["baseline"] / deg["default"] if deg["default"] > 0 else float("inf")
+        for c in ("baseline", "default"):
+            (k0, n0, j0), (k1, n1, j1) = agg[(c, "0.00")], agg[(c, "0.40")]
+            rows.append(f"| {sim} | seeds {first}-{first + 19} | {c} | {k0}/{n0} | {k1}/{n1} | {j0:.2f} | {j1:.2f} | "
+                        f"{deg[c]:+.0%} | {ratio if c == 'default' else 1.0:.2f} |")
+    return rows
+
+
+def _plot(records, path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(BACKBONES), figsize=(4.2 * len(BACKBONES), 3.8), sharey=True)
+    for ax, b in zip(axes, BACKBONES):
+        for seeds, marker, label in ((DESIGN_SEEDS, "o", "design 0-4"), (CONFIRM_SEEDS, "s", "confirm 5-9")):
+            recs = [r for r in _block(records, seeds) if r["backbone"] == b]
+            for j, c in enumerate(COMPARED):
+                sel = [r for r in recs if r["config"] == c]
+                if len(sel) < 50:
+                    continue
+                ax.scatter(np.mean([r["mean_jerk"] for r in sel]), np.mean([r["success"] for r in sel]),
+                           marker=marker, color=f"C{j}", label=f"{c} ({label})")
+        ax.set_title(b)
+        ax.set_xlabel("mean end-effector jerk (m/s^3)")
+    axes[0].set_ylabel("success rate")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=5)
+    fig.tight_layout(rect=(0, 0.12, 1, 1))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def report(out, records, secs, n_units, header, write) -> None:
-    """Placeholder until the report is written: prints the paired tables of what ran."""
-    lines = header("Efficacy", secs, n_units)
-    for b in BACKBONES:
-        lines += ["", f"### {b}", *PAIRED_HEAD]
-        for c in sorted({r["config"] for r in records if r["backbone"] == b} - {"baseline"}):
-            p = paired(records, c, b)
+    """eval/results/efficacy/README.md: the screen, both blocks paired against baseline, Lift/Fetch."""
+    lines = header("Efficacy: per-correction ablation, the shipped default vs baseline, temporal and the paper's "
+                   "two readings", secs, n_units, "LIBERO-Spatial, robosuite Lift and Fetch", about=(
+                       "Backbones: the scripted expert with one failure mode each (eval/efficacy.py BACKBONES); "
+                       "LIBERO seeds = init-state index = expert noise seed, matched across configurations. "
+                       "Paired outcomes against baseline on the same (task, seed): won / lost / both / neither; "
+                       "paired difference in success with a 95 % interval (normal approximation of the mean "
+                       "per-pair difference). `jerk / baseline's`: mean over pairs of the episode's mean jerk "
+                       "over baseline's. `tasks that lost`: tasks where this configuration succeeded fewer "
+                       "times than baseline (how many fewer)."))
+    screen = _block(records, SCREEN_SEEDS)
+    if any(r["config"] in ALONE for r in screen):
+        lines += ["## 1. Each correction alone (design block, init states 0-1, n = 20 per cell: a screen)\n",
+                  "The paper's four Branch A corrections at full authority (c = 1 in their own phase, 0 elsewhere) "
+                  "and the options beyond the paper, each on the clean expert (does it harm a competent policy?) "
+                  "and on the backbone whose failure it targets.\n", *PAIRED_HEAD]
+        for name in ALONE:
+            for b in ("expert_clean", *TARGETS[name]):
+                p = paired(screen, name, b)
+                if p["n"]:
+                    lines.append(paired_row(f"{b} / {name}", p))
+    for title, seeds in (("2. Design block (init states 0-4, n = 50 per cell)", DESIGN_SEEDS),
+                         ("3. Confirmation block (init states 5-9, n = 50 per cell; no decision looked at it)",
+                          CONFIRM_SEEDS)):
+        recs = _block(records, seeds)
+        if not any(r["config"] != "baseline" for r in recs):
+            continue
+        lines += ["", f"## {title}\n", *PAIRED_HEAD]
+        for b in BACKBONES:
+            for c in COMPARED:
+                if c == "baseline":
+                    continue
+                p = paired(recs, c, b)
+                if p["n"]:
+                    lines.append(paired_row(f"{b} / {c}", p))
+    lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
+    if lift:
+        lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",
+                  "| sim | block | configuration | success sigma 0 | success sigma 0.40 | jerk sigma 0 | jerk sigma 0.40 | "
+                  "degradation | baseline's degradation / this one's |", "|---|---|---|---|---|---|---|---|---|", *lift]
+    plate = [r for r in records if r["scene"] == "lift_plate"]
+    if plate:
+        lines += ["", "## 5. Lift + place-on-plate, persistent place bias ~ U(0, 1.7) action units (paper: 35 % -> 95 %)\n",
+                  *PAIRED_HEAD]
+        for first in (LIFT_DESIGN, LIFT_CONFIRM):
+            block = [dict(r, task_id=0) for r in plate if first <= r["seed"] < first + 20]
+            p = paired(block, "default", "lift_plate bias<=1.7")
             if p["n"]:
-                lines.append(paired_row(c, p))
+                lines.append(paired_row(f"seeds {first}-{first + 19} / default", p))
+    lp = [r for r in records if r["config"].startswith("default, alpha_max=") or (
+        r["scene"] in ("lift", "fetch_pick_place") and r["config"] in ("baseline", "default")
+        and LIFT_DESIGN <= r["seed"] < LIFT_DESIGN + 20)]
+    if any(r["config"].startswith("default, alpha_max=") for r in lp):
+        lines += ["", "## 6. Choosing the low-pass's strength (design seeds 7-26, 20 trials per cell)\n",
+                  "| sim | configuration | success sigma 0 | success sigma 0.40 | jerk sigma 0 | jerk sigma 0.40 | "
+                  "degradation |", "|---|---|---|---|---|---|---|"]
+        for sim in ("lift", "fetch"):
+            for c in ("baseline", "default", *(f"default, alpha_max={a}" for a in LOWPASS_ALPHAS)):
+                cells = [[r for r in lp if r["config"] == c and r["backbone"] == f"{sim} sigma={sg}"]
+                         for sg in ("0.00", "0.40")]
+                if all(cells):
+                    j = [float(np.mean([r["mean_jerk"] for r in cell])) for cell in cells]
+                    k = [f"{sum(r['success'] for r in cell)}/{len(cell)}" for cell in cells]
+                    lines.append(f"| {sim} | {c} | {k[0]} | {k[1]} | {j[0]:.2f} | {j[1]:.2f} | {(j[1] - j[0]) / j[0]:+.0%} |")
+    _plot(records, out / "success_jerk.png")
+    lines += ["", "![success vs jerk per backbone](success_jerk.png)"]
     write(out, lines, records)

@@ -420,9 +420,9 @@ def efficacy(args) -> None:
                   for t in range(10) for s in ef.SCREEN_SEEDS]
         units += [Unit(b, "baseline", ef.COMPARED["baseline"].to_dict(), t, s, 1, ef.BACKBONES[b])
                   for b in ef.BACKBONES for t in range(10) for s in ef.SCREEN_SEEDS]
-    for stage, seeds in (("design", ef.DESIGN_SEEDS), ("confirm", ef.CONFIRM_SEEDS)):
+    for stage, seeds, configs in (("design", ef.DESIGN_SEEDS, ef.DESIGN), ("confirm", ef.CONFIRM_SEEDS, ef.COMPARED)):
         if stage in stages:
-            units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in ef.COMPARED.items()
+            units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
                       for b in ef.BACKBONES for t in range(10) for s in seeds]
     lift_cfgs = {"baseline": PhysVLAConfig(mode="baseline"), "default": ef.COMPARED["default"]}
     if "lift" in stages:
@@ -434,6 +434,19 @@ def efficacy(args) -> None:
                 units += [Unit(f"fetch sigma={sg:.2f}", name, cfg.replace(layout="fetch_4d", weighting="task_space")
                                .to_dict(), 0, first, 20, expert, scene="fetch_pick_place")
                           for name, cfg in lift_cfgs.items()]
+            units += [Unit("lift_plate bias<=1.7", name, cfg.to_dict(), 0, first, 20, {"place_bias_units": 1.7},
+                           scene="lift_plate") for name, cfg in lift_cfgs.items()]
+    if "lowpass" in stages:  # the low-pass's strength on the design seeds (Fetch: every alpha; Lift: 0.8)
+        for sg in (0.0, 0.40):
+            expert = {"action_noise": sg, "noise_stage": "grasp"}
+            for am in ef.LOWPASS_ALPHAS:
+                cfg = ef.COMPARED["default"].replace(lowpass_alpha_max=am)
+                units.append(Unit(f"fetch sigma={sg:.2f}", f"default, alpha_max={am}", cfg.replace(
+                    layout="fetch_4d", weighting="task_space").to_dict(), 0, ef.LIFT_DESIGN, 20, expert,
+                    scene="fetch_pick_place"))
+                if am == 0.8:
+                    units.append(Unit(f"lift sigma={sg:.2f}", f"default, alpha_max={am}", cfg.to_dict(), 0,
+                                      ef.LIFT_DESIGN, 20, expert, scene="lift"))
     units = list(dict.fromkeys(units))  # the screen's baselines are also design units
     records, secs = run_units(units, out, args.workers, args.backend)
     ef.report(out, records, secs, len(units), header, write)
@@ -455,7 +468,7 @@ def main() -> None:
     # slower to evaluate on this CPU than the others
     ap.add_argument("--learned", default="act_single,act_chunk,diffusion_chunk",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
-    ap.add_argument("--stages", default="ablation,design,confirm,lift", help="efficacy: which stages to run")
+    ap.add_argument("--stages", default="ablation,design,confirm,lift,lowpass", help="efficacy: which stages to run")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
     args = ap.parse_args()

@@ -204,6 +204,7 @@ def run_units(units: list[Unit], out_dir: str | Path, workers: int | None = None
     out = Path(out_dir)
     (out / "units").mkdir(parents=True, exist_ok=True)
     todo = [u for u in units if not (out / "units" / f"{u.key}.json").exists()]
+    _check_stale([u for u in units if u not in todo], out)
     todo.sort(key=lambda u: (u.scene_name, u.policy))  # workers reuse the scenes they built
     t0 = time.time()
     if todo:
@@ -215,6 +216,20 @@ def run_units(units: list[Unit], out_dir: str | Path, workers: int | None = None
     for u in units:
         records += json.loads((out / "units" / f"{u.key}.json").read_text())["records"]
     return records, time.time() - t0
+
+
+def _check_stale(done: list[Unit], out: Path) -> None:
+    """A unit on disk is keyed by names, not by its configuration: refuse to reuse one whose
+    corrector configuration or expert differs from what is asked now (a preset changed since)."""
+    from lerobot_physvla.core.config import PhysVLAConfig
+
+    for u in done:
+        path = out / "units" / f"{u.key}.json"
+        was = json.loads(path.read_text())["unit"]
+        if (PhysVLAConfig.from_dict(was["config"]) != PhysVLAConfig.from_dict(u.config)
+                or was.get("expert", {}) != u.expert):
+            raise SystemExit(f"harness: {path} was run with another configuration than {u.config_name!r} has now; "
+                             "delete it to re-run that unit")
 
 
 def seed_blocks(n_per_task: int, block: int) -> list[tuple[int, int]]:

@@ -58,3 +58,17 @@ def test_unknown_backend_is_a_clear_error(tmp_path):
 
     with pytest.raises(ValueError, match="unknown backend 'dask'"):
         run_units([], tmp_path, backend="dask")
+
+
+def test_a_unit_on_disk_run_with_another_configuration_is_not_reused(tmp_path):
+    from harness import _check_stale
+
+    from lerobot_physvla.core.config import PRESETS
+
+    old = Unit("expert_clean", "default", PRESETS["default"].replace(lowpass_alpha_max=0.8).to_dict())
+    (tmp_path / "units").mkdir()
+    (tmp_path / "units" / f"{old.key}.json").write_text(json.dumps({"unit": {"config": old.config, "expert": {}}}))
+    _check_stale([old], tmp_path)  # the same configuration: reused
+    now = Unit("expert_clean", "default", PRESETS["default"].to_dict())
+    with pytest.raises(SystemExit, match="delete it"):
+        _check_stale([now], tmp_path)
