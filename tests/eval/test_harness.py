@@ -4,6 +4,8 @@ import json
 import sys
 from pathlib import Path
 
+import pytest
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "eval"))
 from harness import Unit, run_units, seed_blocks  # noqa: E402
 
