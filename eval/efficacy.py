@@ -1,7 +1,7 @@
 """Does the corrector do good? Per-correction ablation, candidates, and the shipped default vs
 the paper's two readings and `temporal`, on a design and a confirmation seed block (issue #10).
 
-    .venv/bin/python eval/experiments.py efficacy [--stages ablation,design,confirm,lift] [--workers 2]
+    .venv/bin/python eval/experiments.py efficacy [--stages ablation,design,confirm,confirm_others,lift,lowpass]
 
 Stages (each resumable; units on disk are skipped):
 - ablation: each Branch A correction alone (the paper's four at full authority, and the options
@@ -9,7 +9,8 @@ Stages (each resumable; units on disk are skipped):
   LIBERO init states 0-1 of the design block (n = 20 per cell: a screen).
 - design: baseline and the candidate default on init states 0-4 (n = 50); temporal and the
   main-text reading on these seeds are eval/results/table2.
-- confirm: the same configurations on init states 5-9 (n = 50), a block no decision looked at.
+- confirm: baseline and the default on init states 5-9 (n = 50), a block no decision looked at;
+  confirm_others: temporal and the paper's two readings on the same block.
 - lift: robosuite Lift (and Fetch) grasp-phase noise at sigma 0 and 0.40, seeds 7-26 (design)
   and 100-119 (confirmation): the jerk-degradation ratio with success unchanged; and Lift +
   place-on-plate with a persistent place bias (the paper's 35 % -> 95 % study), same seeds.
@@ -47,7 +48,7 @@ ALONE = {
     "full veto + height": PhysVLAConfig(mode="phys", phase_caps=OFF, gripper_rule="veto", veto_height_m=0.06),
     "place redirect": PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), place_rule="redirect",
                                     phase_ref="object"),
-    "adaptive low-pass": PhysVLAConfig(mode="phys", phase_caps=OFF, lowpass="adaptive"),
+    "adaptive low-pass": PhysVLAConfig(mode="phys", phase_caps=OFF, lowpass="adaptive", lowpass_alpha_max=0.8),
 }
 # which backbones each correction is screened on: the clean expert always (harm), plus its target
 TARGETS = {

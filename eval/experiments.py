@@ -7,7 +7,7 @@
     .venv/bin/python eval/experiments.py lift_plate  [--pairs 20]
     .venv/bin/python eval/experiments.py fetch_sweep [--trials 20]
     .venv/bin/python eval/experiments.py learned     [--per-task 5] [--checkpoints outputs/train]
-    .venv/bin/python eval/experiments.py efficacy    [--stages ablation,design,confirm,lift]
+    .venv/bin/python eval/experiments.py efficacy    [--stages ablation,design,confirm,confirm_others,lift,lowpass]
 
 Each writes `eval/results/<experiment>/`: README.md (the table, with this command, how long it
 took and on what), records.json (one record per episode) and plots. Sweeps are resumable:
@@ -420,7 +420,9 @@ def efficacy(args) -> None:
                   for t in range(10) for s in ef.SCREEN_SEEDS]
         units += [Unit(b, "baseline", ef.COMPARED["baseline"].to_dict(), t, s, 1, ef.BACKBONES[b])
                   for b in ef.BACKBONES for t in range(10) for s in ef.SCREEN_SEEDS]
-    for stage, seeds, configs in (("design", ef.DESIGN_SEEDS, ef.DESIGN), ("confirm", ef.CONFIRM_SEEDS, ef.COMPARED)):
+    others = {k: v for k, v in ef.COMPARED.items() if k not in ef.DESIGN}
+    for stage, seeds, configs in (("design", ef.DESIGN_SEEDS, ef.DESIGN), ("confirm", ef.CONFIRM_SEEDS, ef.DESIGN),
+                                  ("confirm_others", ef.CONFIRM_SEEDS, others)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
                       for b in ef.BACKBONES for t in range(10) for s in seeds]
@@ -468,7 +470,7 @@ def main() -> None:
     # slower to evaluate on this CPU than the others
     ap.add_argument("--learned", default="act_single,act_chunk,diffusion_chunk",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
-    ap.add_argument("--stages", default="ablation,design,confirm,lift,lowpass", help="efficacy: which stages to run")
+    ap.add_argument("--stages", default="ablation,design,confirm,confirm_others,lift,lowpass", help="efficacy: which stages to run")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
     args = ap.parse_args()

@@ -179,7 +179,7 @@ class PhysVLAConfig:
     phase_ref: str = "eef"
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
-    lowpass_alpha_max: float = 0.8
+    lowpass_alpha_max: float = 0.6
     lowpass_rough_lo: float = 0.05
     lowpass_rough_hi: float = 0.2
 
@@ -282,7 +282,7 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # beyond the paper (docs/method.md): only corrections that are right from the state alone
     "default": PhysVLAConfig(
         mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
-        place_rule="redirect", phase_ref="object", lowpass="adaptive", lowpass_alpha_max=0.6,
+        place_rule="redirect", phase_ref="object", lowpass="adaptive",
     ),
 }
 DEFAULT_PRESET = "default"

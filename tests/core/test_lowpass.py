@@ -33,7 +33,7 @@ def test_a_jittery_policy_is_smoothed_on_the_position_channels_only():
     raw[:, 3:6] = rng.normal(0.0, 0.3, (200, 3))
     raw[:, 6] = np.where(rng.uniform(size=200) < 0.5, -1.0, 1.0)
     raw = np.clip(raw, -1.0, 1.0)
-    out = _run(raw)
+    out = _run(raw, lowpass_alpha_max=0.8)
     # after the roughness estimate settles, the x, y jitter is cut (alpha -> alpha_max = 0.8:
     # an EMA keeps sqrt((1 - a) / (1 + a)) = 0.33 of white noise's std)
     assert out[50:, :2].std() < 0.45 * raw[50:, :2].std()
