@@ -7,7 +7,7 @@
     .venv/bin/python eval/experiments.py lift_plate  [--pairs 20]
     .venv/bin/python eval/experiments.py fetch_sweep [--trials 20]
     .venv/bin/python eval/experiments.py learned     [--per-task 5] [--checkpoints outputs/train]
-    .venv/bin/python eval/experiments.py efficacy    [--stages ablation,design,confirm,confirm_others,lift,lowpass]
+    .venv/bin/python eval/experiments.py efficacy    [--stages ablation,design,confirm,confirm2,confirm_default,confirm_others,lift,lowpass]
 
 Each writes `eval/results/<experiment>/`: README.md (the table, with this command, how long it
 took and on what), records.json (one record per episode) and plots. Sweeps are resumable:
@@ -420,13 +420,15 @@ def efficacy(args) -> None:
                   for t in range(10) for s in ef.SCREEN_SEEDS]
         units += [Unit(b, "baseline", ef.COMPARED["baseline"].to_dict(), t, s, 1, ef.BACKBONES[b])
                   for b in ef.BACKBONES for t in range(10) for s in ef.SCREEN_SEEDS]
-    others = {k: v for k, v in ef.COMPARED.items() if k not in ef.DESIGN}
+    shipped = {k: ef.COMPARED[k] for k in ("baseline", "default")}
+    others = {k: v for k, v in ef.COMPARED.items() if k not in ef.DESIGN and k != "default"}
     for stage, seeds, configs in (("design", ef.DESIGN_SEEDS, ef.DESIGN), ("confirm", ef.CONFIRM_SEEDS, ef.DESIGN),
+                                  ("confirm2", ef.CONFIRM2_SEEDS, shipped), ("confirm_default", ef.CONFIRM_SEEDS, shipped),
                                   ("confirm_others", ef.CONFIRM_SEEDS, others)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
                       for b in ef.BACKBONES for t in range(10) for s in seeds]
-    lift_cfgs = {"baseline": PhysVLAConfig(mode="baseline"), "default": ef.COMPARED["default"]}
+    lift_cfgs = {k: ef.COMPARED[k] for k in ("baseline", ef.CANDIDATE_1, "default")}
     if "lift" in stages:
         for first in (ef.LIFT_DESIGN, ef.LIFT_CONFIRM):
             for sg in (0.0, 0.40):
@@ -442,7 +444,7 @@ def efficacy(args) -> None:
         for sg in (0.0, 0.40):
             expert = {"action_noise": sg, "noise_stage": "grasp"}
             for am in ef.LOWPASS_ALPHAS:
-                cfg = ef.COMPARED["default"].replace(lowpass_alpha_max=am)
+                cfg = ef.COMPARED[ef.CANDIDATE_1].replace(lowpass_alpha_max=am)
                 units.append(Unit(f"fetch sigma={sg:.2f}", f"default, alpha_max={am}", cfg.replace(
                     layout="fetch_4d", weighting="task_space").to_dict(), 0, ef.LIFT_DESIGN, 20, expert,
                     scene="fetch_pick_place"))
@@ -470,7 +472,7 @@ def main() -> None:
     # slower to evaluate on this CPU than the others
     ap.add_argument("--learned", default="act_single,act_chunk,diffusion_chunk",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
-    ap.add_argument("--stages", default="ablation,design,confirm,confirm_others,lift,lowpass", help="efficacy: which stages to run")
+    ap.add_argument("--stages", default="ablation,design,confirm,confirm2,confirm_default,confirm_others,lift,lowpass", help="efficacy: which stages to run")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
     args = ap.parse_args()

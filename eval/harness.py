@@ -223,10 +223,15 @@ def _check_stale(done: list[Unit], out: Path) -> None:
     corrector configuration or expert differs from what is asked now (a preset changed since)."""
     from lerobot_physvla.core.config import PhysVLAConfig
 
+    def effective(d: dict) -> PhysVLAConfig:  # the low-pass's parameters matter only when it is on
+        c = PhysVLAConfig.from_dict(d)
+        return c if c.lowpass != "off" else c.replace(lowpass_alpha_max=0.0, lowpass_rough_lo=0.0,
+                                                      lowpass_rough_hi=1.0, lowpass_phases="")
+
     for u in done:
         path = out / "units" / f"{u.key}.json"
         was = json.loads(path.read_text())["unit"]
-        if (PhysVLAConfig.from_dict(was["config"]) != PhysVLAConfig.from_dict(u.config)
+        if (effective(was["config"]) != effective(u.config)
                 or was.get("expert", {}) != u.expert):
             raise SystemExit(f"harness: {path} was run with another configuration than {u.config_name!r} has now; "
                              "delete it to re-run that unit")

@@ -282,7 +282,7 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # beyond the paper (docs/method.md): only corrections that are right from the state alone
     "default": PhysVLAConfig(
         mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
-        place_rule="redirect", phase_ref="object", lowpass="adaptive",
+        place_rule="redirect", phase_ref="object",
     ),
 }
 DEFAULT_PRESET = "default"

@@ -16,7 +16,8 @@ CONFIGS = [
     PhysVLAConfig(mode="phys_el", weighting="task_space", el_mode="gated", cap=1.0),
     PhysVLAConfig(mode="phys_el", chunk="first"),
     PRESETS["default"],
-    PRESETS["default"].replace(mode="phys_el", phase_caps=(0.2, 0.5, 1.0, 1.0), lowpass_phases="grasp,place"),
+    PRESETS["default"].replace(mode="phys_el", phase_caps=(0.2, 0.5, 1.0, 1.0), lowpass="adaptive",
+                               lowpass_phases="grasp,place"),
 ]
 
 

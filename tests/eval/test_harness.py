@@ -67,10 +67,14 @@ def test_a_unit_on_disk_run_with_another_configuration_is_not_reused(tmp_path):
 
     from lerobot_physvla.core.config import PRESETS
 
-    old = Unit("expert_clean", "default", PRESETS["default"].replace(lowpass_alpha_max=0.8).to_dict())
+    old = Unit("expert_clean", "default", PRESETS["default"].replace(lowpass="adaptive", lowpass_alpha_max=0.8).to_dict())
     (tmp_path / "units").mkdir()
     (tmp_path / "units" / f"{old.key}.json").write_text(json.dumps({"unit": {"config": old.config, "expert": {}}}))
     _check_stale([old], tmp_path)  # the same configuration: reused
-    now = Unit("expert_clean", "default", PRESETS["default"].to_dict())
+    now = Unit("expert_clean", "default", PRESETS["default"].replace(lowpass="adaptive", lowpass_alpha_max=0.6).to_dict())
     with pytest.raises(SystemExit, match="delete it"):
         _check_stale([now], tmp_path)
+    # the low-pass's parameters do not matter while it is off: such a unit is reused
+    off = Unit("x", "off", PRESETS["default"].replace(lowpass_alpha_max=0.8).to_dict())
+    (tmp_path / "units" / f"{off.key}.json").write_text(json.dumps({"unit": {"config": off.config, "expert": {}}}))
+    _check_stale([Unit("x", "off", PRESETS["default"].to_dict())], tmp_path)
