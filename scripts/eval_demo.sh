@@ -9,4 +9,4 @@ rm -rf "$out"
 set -x
 .venv/bin/lerobot-eval --policy.path=outputs/policies/scripted --env.type=libero_physvla --env.cameras=false \
   --env.task=libero_spatial --env.task_ids='[0,1]' --eval.n_episodes=2 --eval.batch_size=2 \
-  --policy.postprocess=physvla --physvla.mode=phys_el --output_dir="$out"
+  --policy.postprocess=physvla --output_dir="$out"
