@@ -39,6 +39,12 @@ BACKBONES = {
 }
 OFF = (0.0, 0.0, 0.0, 0.0)
 CANDIDATE_1 = "default + low-pass (candidate 1)"
+# the first shipped default: the veto everywhere in approach. Confirmed on init states 10-14, where
+# it cost the jitter expert 24 pp: its aim noise (sigma 0.015 m) puts the rim grasp (0.047 m off
+# the bowl's origin) beyond delta_grasp = 0.06 m one time in five, and the veto then opened the
+# gripper on a grasp that would have held. Its units ran under the name "default" and were renamed.
+DEFAULT_V1 = "default v1"
+DEFAULT_LP = "default + low-pass"
 
 # Each correction alone (the others' authority 0), phys mode.
 ALONE = {
@@ -47,6 +53,8 @@ ALONE = {
     "transport EMA + lift (paper, c=1)": PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.0, 1.0, 0.0)),
     "place deceleration (paper, c=1)": PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0)),
     "full veto + height": PhysVLAConfig(mode="phys", phase_caps=OFF, gripper_rule="veto", veto_height_m=0.06),
+    "full veto + height + reach": PhysVLAConfig(mode="phys", phase_caps=OFF, gripper_rule="veto", veto_height_m=0.06,
+                                                veto_reach_m=0.10),
     "place redirect": PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), place_rule="redirect",
                                     phase_ref="object"),
     "adaptive low-pass": PhysVLAConfig(mode="phys", phase_caps=OFF, lowpass="adaptive", lowpass_alpha_max=0.8),
@@ -58,6 +66,7 @@ TARGETS = {
     "transport EMA + lift (paper, c=1)": ("expert_jitter", "expert_faulty"),
     "place deceleration (paper, c=1)": ("expert_faulty", "expert_place_bias"),
     "full veto + height": ("expert_faulty",),
+    "full veto + height + reach": ("expert_faulty",),
     "place redirect": ("expert_faulty", "expert_place_bias"),
     "adaptive low-pass": ("expert_jitter",),
 }
@@ -66,21 +75,31 @@ TARGETS = {
 COMPARED = {
     "baseline": PhysVLAConfig(mode="baseline"),
     "default": PRESETS["default"],
-    # the first candidate default: confirmed on init states 5-9, where the low-pass cost the jitter
-    # expert 16 pp; its units ran under the name "default" and were renamed when the default changed
-    CANDIDATE_1: PRESETS["default"].replace(lowpass="adaptive", lowpass_alpha_max=0.6),
+    DEFAULT_LP: PRESETS["default"].replace(lowpass="adaptive", lowpass_alpha_max=0.6),
+    DEFAULT_V1: PRESETS["default"].replace(veto_reach_m=0.0),
+    # the first candidate default: confirmed on init states 5-9, where it cost the jitter expert
+    # 16 pp; its units ran under the name "default" and were renamed when the default changed
+    CANDIDATE_1: PRESETS["default"].replace(veto_reach_m=0.0, lowpass="adaptive", lowpass_alpha_max=0.6),
     "temporal": PhysVLAConfig(mode="temporal"),
     "paper (eq. 2, c=0.05)": PRESETS["paper"],
     "paper Alg. 1 (c=1)": PRESETS["paper_alg1"],
 }
 # on the design block only the candidates run: temporal and the main-text reading on these seeds
 # are eval/results/table2 (same seeds, same code path)
-DESIGN = {name: COMPARED[name] for name in ("baseline", CANDIDATE_1)}
+DESIGN = {name: COMPARED[name] for name in ("baseline", CANDIDATE_1, "default", DEFAULT_LP)}
+CONFIRM = {name: COMPARED[name] for name in ("baseline", CANDIDATE_1)}
 # the shipped default (candidate 1 without the low-pass), confirmed again on a block nobody had
 # looked at: init states 10-14 (used to record the learned backbones' demonstrations, never to
 # evaluate or tune the corrector), and run on the first confirmation block 5-9
 CONFIRM2_SEEDS = range(10, 15)
-LIFT_CONFIGS = ("baseline", CANDIDATE_1, "default")
+CONFIRM2 = {name: COMPARED[name] for name in ("baseline", DEFAULT_V1)}
+# the default with the veto's reach (chosen on the design block 0-4 after 10-14 showed the veto's
+# cost), confirmed on init states 15-19, a block no decision looked at
+CONFIRM3_SEEDS = range(15, 20)
+CONFIRM3 = {name: COMPARED[name] for name in ("baseline", "default")}
+# the jitter expert's loss under default v1, taken apart on the design block: which rule costs it
+DIAGNOSIS = ("full veto + height", "place redirect", "full veto + height + reach")
+LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, "default")
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 LIFT_DESIGN, LIFT_CONFIRM = 7, 100  # first seeds of the Lift / Fetch blocks (20 trials each)

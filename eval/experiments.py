@@ -7,7 +7,7 @@
     .venv/bin/python eval/experiments.py lift_plate  [--pairs 20]
     .venv/bin/python eval/experiments.py fetch_sweep [--trials 20]
     .venv/bin/python eval/experiments.py learned     [--per-task 5] [--checkpoints outputs/train]
-    .venv/bin/python eval/experiments.py efficacy    [--stages ablation,design,confirm,confirm2,confirm_default,confirm_others,lift,lowpass]
+    .venv/bin/python eval/experiments.py efficacy    [--stages ablation,diagnosis,design,confirm,confirm2,confirm3,confirm_default,confirm_others,lift,lowpass]
 
 Each writes `eval/results/<experiment>/`: README.md (the table, with this command, how long it
 took and on what), records.json (one record per episode) and plots. Sweeps are resumable:
@@ -420,15 +420,21 @@ def efficacy(args) -> None:
                   for t in range(10) for s in ef.SCREEN_SEEDS]
         units += [Unit(b, "baseline", ef.COMPARED["baseline"].to_dict(), t, s, 1, ef.BACKBONES[b])
                   for b in ef.BACKBONES for t in range(10) for s in ef.SCREEN_SEEDS]
+    if "diagnosis" in stages:
+        units += [Unit("expert_jitter", name, cfg.to_dict(), t, s, 1, ef.BACKBONES["expert_jitter"])
+                  for name, cfg in [(n, ef.ALONE[n]) for n in ef.DIAGNOSIS] + [("baseline", ef.COMPARED["baseline"])]
+                  for t in range(10) for s in ef.DESIGN_SEEDS]
     shipped = {k: ef.COMPARED[k] for k in ("baseline", "default")}
-    others = {k: v for k, v in ef.COMPARED.items() if k not in ef.DESIGN and k != "default"}
-    for stage, seeds, configs in (("design", ef.DESIGN_SEEDS, ef.DESIGN), ("confirm", ef.CONFIRM_SEEDS, ef.DESIGN),
-                                  ("confirm2", ef.CONFIRM2_SEEDS, shipped), ("confirm_default", ef.CONFIRM_SEEDS, shipped),
+    others = {k: v for k, v in ef.COMPARED.items() if k in ("temporal", "paper (eq. 2, c=0.05)", "paper Alg. 1 (c=1)")}
+    for stage, seeds, configs in (("design", ef.DESIGN_SEEDS, ef.DESIGN), ("confirm", ef.CONFIRM_SEEDS, ef.CONFIRM),
+                                  ("confirm2", ef.CONFIRM2_SEEDS, ef.CONFIRM2),
+                                  ("confirm3", ef.CONFIRM3_SEEDS, ef.CONFIRM3),
+                                  ("confirm_default", ef.CONFIRM_SEEDS, shipped),
                                   ("confirm_others", ef.CONFIRM_SEEDS, others)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
                       for b in ef.BACKBONES for t in range(10) for s in seeds]
-    lift_cfgs = {k: ef.COMPARED[k] for k in ("baseline", ef.CANDIDATE_1, "default")}
+    lift_cfgs = {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}
     if "lift" in stages:
         for first in (ef.LIFT_DESIGN, ef.LIFT_CONFIRM):
             for sg in (0.0, 0.40):
@@ -472,7 +478,7 @@ def main() -> None:
     # slower to evaluate on this CPU than the others
     ap.add_argument("--learned", default="act_single,act_chunk,diffusion_chunk",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
-    ap.add_argument("--stages", default="ablation,design,confirm,confirm2,confirm_default,confirm_others,lift,lowpass", help="efficacy: which stages to run")
+    ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm_default,confirm_others,lift,lowpass", help="efficacy: which stages to run")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
     args = ap.parse_args()

@@ -17,22 +17,27 @@ from lerobot_physvla.core.state import GUARD_CLIPPED, GUARD_HELD, NONFINITE_OUTP
 
 
 @njit(cache=True, error_model="numpy")
-def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, veto_height, height, low, high):
+def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, veto_geom, geo, low, high):
     """Eq. 2 with the gripper rule and clipping for every env whose status is OK; an env whose
     result is not finite gets status NONFINITE_OUTPUT. Rows of other envs are left for `_guard`.
 
     caps (4,): the authority c per phase. veto: the gripper rule `veto` sets the gripper to open
-    in full (never blended) in the approach phase, and in the grasp phase where the end-effector
-    is more than veto_height metres above the object's origin (height (B,), m; veto_height 0 = off).
+    in full (never blended) where no grasp can close on the object. veto_geom (2,) [height,
+    reach] (m) says where that is, from geo (B, 4) [d_obj_xy, d_tgt_xy, lift, eef height above the
+    object's origin]: in the approach phase, wherever the hand is reach or more from the object
+    horizontally or more than height above it (reach 0: everywhere in approach, the paper); in the
+    grasp phase, where it is more than height above it (height 0: never).
     """
+    veto_height, veto_reach = veto_geom[0], veto_geom[1]
     out = np.empty_like(a_raw)
     dev = np.zeros(a_raw.shape[0])
     for i in range(a_raw.shape[0]):
         if status[i] == OK:
             finite = True
             cap = caps[phase[i]]
-            vetoed = veto and (phase[i] == APPROACH or (
-                veto_height > 0.0 and phase[i] == GRASP and height[i] > veto_height))
+            above = veto_height > 0.0 and geo[i, 3] > veto_height
+            vetoed = veto and ((phase[i] == APPROACH and (veto_reach <= 0.0 or geo[i, 0] >= veto_reach or above))
+                               or (phase[i] == GRASP and above))
             for k in range(a_raw.shape[1]):
                 v = (1.0 - cap) * a_raw[i, k] + cap * a_cand[i, k]
                 if vetoed and k == grip:

@@ -139,6 +139,10 @@ class PhysVLAConfig:
         veto_height_m: with gripper_rule=veto, a close commanded in the grasp phase while the
             end-effector is more than this above the object's origin is vetoed too (the fingers are
             above the object: no grasp can close on it), metres; 0 = approach phase only.
+        veto_reach_m: with gripper_rule=veto, the approach-phase veto applies only where the hand is
+            at least this far from the object's origin horizontally, or above veto_height_m: nearer
+            and lower, open fingers can still straddle a rim or a handle (LIBERO bowls: radius
+            ~0.06 m + half the Panda's 0.08 m opening = 0.10 m), metres; 0 = everywhere in approach.
         place_rule: decelerate (eq. 5) | redirect (place: the horizontal channels steer the held
             object's centre over the target's, redirect_gain (p_tgt - p_obj) / scale).
         redirect_gain: gain of the place redirection, action units per action unit of error (1 =
@@ -174,6 +178,7 @@ class PhysVLAConfig:
     chunk: str = "all"
     phase_caps: tuple[float, ...] = ()
     veto_height_m: float = 0.0
+    veto_reach_m: float = 0.0
     place_rule: str = "decelerate"
     redirect_gain: float = 0.5
     phase_ref: str = "eef"
@@ -226,8 +231,9 @@ class PhysVLAConfig:
         if not 0.0 <= self.lowpass_rough_lo < self.lowpass_rough_hi:
             raise ValueError("physvla: need 0 <= lowpass_rough_lo < lowpass_rough_hi, got "
                              f"{self.lowpass_rough_lo}, {self.lowpass_rough_hi}")
-        if not (self.veto_height_m >= 0 and self.redirect_gain > 0):
-            raise ValueError("physvla: need veto_height_m >= 0 and redirect_gain > 0")
+        if not (self.veto_height_m >= 0 and self.veto_reach_m >= 0 and self.redirect_gain > 0):
+            raise ValueError("physvla: need veto_height_m >= 0, veto_reach_m >= 0 and redirect_gain > 0, got "
+                             f"{self.veto_height_m}, {self.veto_reach_m}, {self.redirect_gain}")
 
     @property
     def caps(self) -> tuple[float, float, float, float]:
@@ -282,7 +288,7 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # beyond the paper (docs/method.md): only corrections that are right from the state alone
     "default": PhysVLAConfig(
         mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
-        place_rule="redirect", phase_ref="object",
+        veto_reach_m=0.10, place_rule="redirect", phase_ref="object",
     ),
 }
 DEFAULT_PRESET = "default"

@@ -39,7 +39,7 @@ from lerobot_physvla.core.state import (
 )
 from lerobot_physvla.core.tick import (
     D_DEV, D_GUARD, D_LIFT, D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, FP_B, FP_CAP, FP_CAPS, FP_D_GRASP,
-    FP_GRIP_OPEN, FP_H_LIFT, FP_HIGH, FP_LOW, FP_LP, FP_VETO_H, IP_B, IP_BASELINE, IP_BRANCH_B, IP_FLAGS, IP_GRIP,
+    FP_GRIP_OPEN, FP_H_LIFT, FP_HIGH, FP_LOW, FP_LP, FP_VETO, IP_B, IP_BASELINE, IP_BRANCH_B, IP_FLAGS, IP_GRIP,
     IP_LOWPASS, IP_LP_MASK, IP_N, IP_PHASE, IP_POS, IP_TEMPORAL, IP_VETO, N_DIAG, N_FP, N_IP, correct_tick,
     record_tick,
 )
@@ -256,8 +256,8 @@ class Corrector:
         fp[FP_GRIP_OPEN], fp[FP_LOW], fp[FP_HIGH] = lay.gripper_open, lay.low, lay.high
         if self.branch_b is not None:
             fp[FP_B:FP_CAPS] = self.branch_b.params
-        fp[FP_CAPS:FP_VETO_H] = cfg.caps
-        fp[FP_VETO_H] = cfg.veto_height_m
+        fp[FP_CAPS:FP_VETO] = cfg.caps
+        fp[FP_VETO:FP_LP] = cfg.veto_height_m, cfg.veto_reach_m
         fp[FP_LP:N_FP] = cfg.lowpass_alpha_max, cfg.lowpass_rough_lo, cfg.lowpass_rough_hi
         return fp
 
@@ -337,9 +337,9 @@ class Corrector:
             if self.branch_b is not None:
                 a_phys, w, r = el_gate(a_raw, a_phys, flat, ip[IP_B:IP_N], ip[IP_N], ip[IP_POS:IP_FLAGS],
                                        fp[FP_B:FP_CAPS], ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
-            caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO_H]
+            caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO]
             out, dev = blend(a_raw, a_phys, phase, status, caps, self._grip, fp[FP_GRIP_OPEN], bool(ip[IP_VETO]),
-                             fp[FP_VETO_H], geo[:, 3], fp[FP_LOW], fp[FP_HIGH])
+                             fp[FP_VETO:FP_LP], geo, fp[FP_LOW], fp[FP_HIGH])
             if ip[IP_LOWPASS]:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
                                  fp[FP_LP + 1], fp[FP_LP + 2], self._lp_mem, commit, dev)

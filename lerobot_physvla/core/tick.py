@@ -18,7 +18,8 @@ position channels, [15:17] Branch B flags (el_mode, weighting), [17] gripper cha
 phases where the low-pass acts (0/1 each).
 Float parameters `fp`: [0] delta_grasp (m), [1] h_lift (m), [2] cap c, [3] gripper open value,
 [4] low, [5] high (action units), [6:10] Branch B [metres_per_unit, damping, eps (N m), r0 (N m)],
-[10:14] the authority per phase, [14] veto height (m), [15:18] low-pass [alpha_max, lo, hi].
+[10:14] the authority per phase, [14:16] gripper veto [height, reach] (m), [16:19] low-pass
+[alpha_max, lo, hi].
 """
 
 from __future__ import annotations
@@ -43,8 +44,8 @@ TICK_SOURCE_KEY = source_key(TICK_SOURCE_FILES)
 (IP_PHASE, IP_B, IP_N, IP_POS, IP_FLAGS, IP_GRIP, IP_TEMPORAL, IP_BASELINE, IP_BRANCH_B, IP_VETO, IP_LOWPASS,
  IP_LP_MASK, N_IP) = (0, 5, 11, 12, 15, 17, 18, 19, 20, 21, 22, 23, 27)
 # layout of the float parameters
-(FP_D_GRASP, FP_H_LIFT, FP_CAP, FP_GRIP_OPEN, FP_LOW, FP_HIGH, FP_B, FP_CAPS, FP_VETO_H, FP_LP, N_FP) = (
-    0, 1, 2, 3, 4, 5, 6, 10, 14, 15, 18)
+(FP_D_GRASP, FP_H_LIFT, FP_CAP, FP_GRIP_OPEN, FP_LOW, FP_HIGH, FP_B, FP_CAPS, FP_VETO, FP_LP, N_FP) = (
+    0, 1, 2, 3, 4, 5, 6, 10, 14, 16, 19)
 # columns of the diagnostics buffer (B, N_DIAG + A): phase (-1 where passed through), status
 # (REASONS code), guard (GUARDS code), d_obj_xy, d_tgt_xy, lift (m), |r_EL| (N m), r_energy (W),
 # deviation max|a - a_raw| (action units), sum of Branch B weights, then the A weights
@@ -100,9 +101,9 @@ def _compile(key: int):
             if ip[IP_BRANCH_B] != 0:
                 a_phys, w, r = el_gate(a_raw, a_phys, flat, ip[IP_B:IP_N], ip[IP_N], ip[IP_POS:IP_FLAGS], fp[FP_B:N_FP],
                                        ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
-            caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO_H]  # the temporal baseline is applied in full
+            caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO]  # the temporal baseline is applied in full
             out, dev = blend(a_raw, a_phys, phase, status, caps, ip[IP_GRIP], fp[FP_GRIP_OPEN], ip[IP_VETO] != 0,
-                             fp[FP_VETO_H], geo[:, 3], fp[FP_LOW], fp[FP_HIGH])
+                             fp[FP_VETO:FP_LP], geo, fp[FP_LOW], fp[FP_HIGH])
             if ip[IP_LOWPASS] != 0:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
                                  fp[FP_LP + 1], fp[FP_LP + 2], lp_mem, commit, dev)

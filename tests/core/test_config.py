@@ -53,7 +53,8 @@ def test_presets_follow_the_paper_and_the_default_is_built_from_the_options():
 @pytest.mark.parametrize("bad", [{"phase_caps": (0.1, 0.2)}, {"phase_caps": (0, 0, 0, 2)},
                                  {"lowpass_phases": "approach,lunch"}, {"lowpass_alpha_max": 1.0},
                                  {"lowpass_rough_lo": 0.3, "lowpass_rough_hi": 0.2}, {"place_rule": "throw"},
-                                 {"phase_ref": "elbow"}, {"veto_height_m": -0.1}])
+                                 {"phase_ref": "elbow"}, {"veto_height_m": -0.1},
+                                 {"veto_reach_m": -0.1}])
 def test_bad_options_are_rejected(bad):
     with pytest.raises(ValueError):
         PhysVLAConfig(**bad)

@@ -217,6 +217,21 @@ def test_full_veto_with_height_vetoes_a_close_above_the_object_in_grasp():
     assert Corrector(cfg.replace(veto_height_m=0.0))(close, high)[0, 6] == 1.0  # 0: approach only
 
 
+def test_veto_reach_spares_a_low_close_within_reach_of_a_rim():
+    close = RAW.copy()
+    close[0, 6] = 1.0  # robosuite: +1 closes
+    cfg = PhysVLAConfig(mode="phys", phase_caps=(0.0,) * 4, gripper_rule="veto", veto_height_m=0.06,
+                        veto_reach_m=0.10)
+    rim = make_state(eef=(0.0, -0.08, 0.935), obj=(0.0, 0.0, 0.9))  # approach (0.08 >= 0.06), 3.5 cm up
+    beyond = make_state(eef=(0.0, -0.12, 0.935), obj=(0.0, 0.0, 0.9))  # out of the fingers' reach
+    over = make_state(eef=(0.0, -0.08, 1.0), obj=(0.0, 0.0, 0.9))  # within reach but 10 cm above
+    assert Corrector(cfg)(close, rim)[0, 6] == 1.0
+    assert Corrector(cfg)(close, beyond)[0, 6] == -1.0
+    assert Corrector(cfg)(close, over)[0, 6] == -1.0
+    assert Corrector(cfg.replace(veto_reach_m=0.0))(close, rim)[0, 6] == -1.0  # 0: all of approach (paper)
+    assert Corrector(cfg, profile=True)(close, rim)[0, 6] == 1.0  # the staged path agrees
+
+
 def test_phase_ref_object_measures_the_place_distance_from_the_held_object():
     # lifted object 8 cm off the hand, right over the target; the hand itself is 8 cm away from it
     st = make_state(eef=(0.10, 0.0, 1.0), obj=(0.02, 0.0, 0.95), target=(0.02, 0.0, 0.9), lift=0.05)
