@@ -177,7 +177,7 @@ def _plot(records, path) -> None:
     fig, axes = plt.subplots(1, len(BACKBONES), figsize=(4.2 * len(BACKBONES), 3.8), sharey=True)
     for ax, b in zip(axes, BACKBONES):
         for seeds, marker, label in ((DESIGN_SEEDS, "o", "design 0-4"), (CONFIRM_SEEDS, "s", "confirm 5-9"),
-                                     (CONFIRM2_SEEDS, "^", "confirm 10-14")):
+                                     (CONFIRM2_SEEDS, "^", "confirm 10-14"), (CONFIRM3_SEEDS, "D", "confirm 15-19")):
             recs = [r for r in _block(records, seeds) if r["backbone"] == b]
             for j, c in enumerate(COMPARED):
                 sel = [r for r in recs if r["config"] == c]
@@ -217,12 +217,29 @@ def report(out, records, secs, n_units, header, write) -> None:
                 p = paired(screen, name, b)
                 if p["n"]:
                     lines.append(paired_row(f"{b} / {name}", p))
+    diag = [r for r in _block(records, DESIGN_SEEDS) if r["backbone"] == "expert_jitter"]
+    if any(r["config"] in DIAGNOSIS for r in diag):
+        v1 = [r for r in _block(records, CONFIRM2_SEEDS) if r["backbone"] == "expert_jitter" and r["config"] == DEFAULT_V1]
+        rate = {ok: np.mean([r["veto_fire_rate"] for r in v1 if r["success"] == ok] or [np.nan]) for ok in (True, False)}
+        frac = np.mean([r["phase_fraction"][0] for r in v1 if not r["success"]] or [np.nan])
+        lines += ["", "## 1b. Diagnosis: what cost the jitter expert under default v1 (design block 0-4, n = 50)\n",
+                  f"Under default v1 on init states 10-14 (section 3b) the jitter expert's failed episodes spent "
+                  f"{frac:.0%} of their steps in the approach phase, with the veto firing on {rate[False]:.2f} of "
+                  f"the approach steps (successful episodes: {rate[True]:.3f}). Each of v1's rules alone on the "
+                  "jitter expert:\n", *PAIRED_HEAD]
+        for name in DIAGNOSIS:
+            p = paired(diag, name, "expert_jitter")
+            if p["n"]:
+                lines.append(paired_row(f"expert_jitter / {name}", p))
     for title, seeds in (("2. Design block (init states 0-4, n = 50 per cell)", DESIGN_SEEDS),
                          ("3. Confirmation block (init states 5-9, n = 50 per cell; no decision looked at it "
                           "before candidate 1 ran on it)", CONFIRM_SEEDS),
-                         ("3b. Second confirmation block (init states 10-14, n = 50 per cell): the shipped default, "
-                          "chosen after block 5-9 showed the low-pass's cost; no decision looked at this block",
-                          CONFIRM2_SEEDS)):
+                         ("3b. Second confirmation block (init states 10-14, n = 50 per cell): default v1, "
+                          "chosen after block 5-9 showed candidate 1's cost; no decision looked at this block",
+                          CONFIRM2_SEEDS),
+                         ("3c. Third confirmation block (init states 15-19, n = 50 per cell): the shipped default "
+                          "(v1 + the veto's reach), chosen on the design block after 10-14 showed v1's cost; no "
+                          "decision looked at this block", CONFIRM3_SEEDS)):
         recs = _block(records, seeds)
         if not any(r["config"] != "baseline" for r in recs):
             continue
