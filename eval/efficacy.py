@@ -1,7 +1,7 @@
 """Does the corrector do good? Per-correction ablation, candidates, and the shipped default vs
 the paper's two readings and `temporal`, on a design and a confirmation seed block (issue #10).
 
-    .venv/bin/python eval/experiments.py efficacy [--stages ablation,design,confirm,confirm_others,lift,lowpass]
+    .venv/bin/python eval/experiments.py efficacy [--stages ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,lift,lowpass]
 
 Stages (each resumable; units on disk are skipped):
 - ablation: each Branch A correction alone (the paper's four at full authority, and the options
@@ -9,8 +9,10 @@ Stages (each resumable; units on disk are skipped):
   LIBERO init states 0-1 of the design block (n = 20 per cell: a screen).
 - design: baseline and the candidate default on init states 0-4 (n = 50); temporal and the
   main-text reading on these seeds are eval/results/table2.
-- confirm: baseline and the default on init states 5-9 (n = 50), a block no decision looked at;
-  confirm_others: temporal and the paper's two readings on the same block.
+- confirm: baseline and candidate 1 on init states 5-9 (n = 50), a block no decision looked at;
+  confirm2: default v1 on init states 10-14; confirm3: the shipped default on init states 15-19;
+  confirm3_others (confirm_others): temporal and the paper's two readings on 15-19 (5-9).
+- diagnosis: default v1's rules one by one on the jitter expert, design block 0-4.
 - lift: robosuite Lift (and Fetch) grasp-phase noise at sigma 0 and 0.40, seeds 7-26 (design)
   and 100-119 (confirmation): the jerk-degradation ratio with success unchanged; and Lift +
   place-on-plate with a persistent place bias (the paper's 35 % -> 95 % study), same seeds.

@@ -7,7 +7,7 @@
     .venv/bin/python eval/experiments.py lift_plate  [--pairs 20]
     .venv/bin/python eval/experiments.py fetch_sweep [--trials 20]
     .venv/bin/python eval/experiments.py learned     [--per-task 5] [--checkpoints outputs/train]
-    .venv/bin/python eval/experiments.py efficacy    [--stages ablation,diagnosis,design,confirm,confirm2,confirm3,confirm_default,confirm_others,lift,lowpass]
+    .venv/bin/python eval/experiments.py efficacy    [--stages ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass]
 
 Each writes `eval/results/<experiment>/`: README.md (the table, with this command, how long it
 took and on what), records.json (one record per episode) and plots. Sweeps are resumable:
@@ -430,7 +430,8 @@ def efficacy(args) -> None:
                                   ("confirm2", ef.CONFIRM2_SEEDS, ef.CONFIRM2),
                                   ("confirm3", ef.CONFIRM3_SEEDS, ef.CONFIRM3),
                                   ("confirm_default", ef.CONFIRM_SEEDS, shipped),
-                                  ("confirm_others", ef.CONFIRM_SEEDS, others)):
+                                  ("confirm_others", ef.CONFIRM_SEEDS, others),
+                                  ("confirm3_others", ef.CONFIRM3_SEEDS, others)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
                       for b in ef.BACKBONES for t in range(10) for s in seeds]
@@ -478,7 +479,7 @@ def main() -> None:
     # slower to evaluate on this CPU than the others
     ap.add_argument("--learned", default="act_single,act_chunk,diffusion_chunk",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
-    ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm_default,confirm_others,lift,lowpass", help="efficacy: which stages to run")
+    ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass", help="efficacy: which stages to run")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
     args = ap.parse_args()
