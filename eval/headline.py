@@ -105,9 +105,7 @@ def efficacy_table() -> list[str]:
         return []
     lines = []
     for seeds, what in ((ef.CONFIRM3_SEEDS, "init states 15-19, a block no decision looked at"),
-                        (ef.DESIGN_SEEDS, "init states 0-4, the design block"),
-                        (ef.CONFIRM2_SEEDS, "init states 10-14, the previous default (v1)"),
-                        (ef.CONFIRM_SEEDS, "init states 5-9, the first confirmation block")):
+                        (ef.DESIGN_SEEDS, "init states 0-4, the design block")):
         block = [r for r in recs if r["scene"] == "libero_spatial" and r["seed"] in seeds]
         configs = [c for c in ef.COMPARED if c != "baseline"
                    and sum(r["config"] == c for r in block) >= 50 * len(ef.BACKBONES)]
