@@ -18,7 +18,7 @@ NAME = "lerobot_physvla"
 RANK = {
     "core": 0,
     "sim": 1, "robots": 1,
-    "compat": 2, "flags": 2, "diagnostics": 2, "metrics": 2, "processor": 2, "envs": 2, "policies": 2, "replay": 2,
+    "compat": 2, "flags": 2, "diagnostics": 2, "metrics": 2, "report": 2, "processor": 2, "envs": 2, "policies": 2, "replay": 2,
     "scripts": 3,
     "plugin": 4,
 }
