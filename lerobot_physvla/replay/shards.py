@@ -30,9 +30,12 @@ def map_shards(fn, cfg: dict, items: list, workers: int = 1, backend: str = "pro
                 out += fn(cfg, s, batch=batch)
                 bar.update(len(s))
         elif backend == "process":
+            import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor, as_completed
 
-            with ProcessPoolExecutor(max_workers=min(workers, len(shards)), initializer=_one_thread) as pool:
+            # spawn: the parent may hold threads (torch, datasets) that fork would copy mid-lock
+            with ProcessPoolExecutor(max_workers=min(workers, len(shards)), mp_context=mp.get_context("spawn"),
+                                     initializer=_one_thread) as pool:
                 futures = {pool.submit(fn, cfg, s, batch=batch): len(s) for s in shards}
                 for f in as_completed(futures):
                     out += f.result()
