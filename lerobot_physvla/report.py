@@ -76,8 +76,9 @@ def summary_table(rows: list[dict], extra: dict[str, str] | None = None, max_row
         lines.append(f"... {len(rows) - max_rows} more episodes (all of them in the JSON records)")
     known = [r for r in rows if r["success"] != "-"]
     total = f"{len(rows)} episodes, {sum(r['frames'] for r in rows)} frames"
-    if known:
-        total += f", success {sum(r['success'] == 'yes' for r in known)}/{len(known)}"
+    if known:  # "recorded/raw/corrected" rows (re-simulation) count the recorded outcome here
+        ok = sum(str(r["success"]).split("/")[0] == "yes" for r in known)
+        total += f", {'recorded ' if '/' in str(known[0]['success']) else ''}success {ok}/{len(known)}"
     lines.append(("\n" if markdown else "") + total)
     for k, v in (extra or {}).items():
         lines.append(f"{k}: {v}" + ("  " if markdown else ""))

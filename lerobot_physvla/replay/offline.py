@@ -146,9 +146,10 @@ def commanded_path(actions: np.ndarray, layout) -> np.ndarray:
 
 
 def flagged_frames(raw: np.ndarray, states: np.ndarray, phase: np.ndarray, cfg: PhysVLAConfig) -> list[dict]:
-    """Frames where the recorded action looks physically wrong: a gripper close commanded far from
-    the object (beyond delta_grasp horizontally, or more than veto_height above it), and a release
-    commanded in transport. One entry per onset (the frame the command switches)."""
+    """Frames where the recorded action looks physically wrong, by the corrector's own geometry: a
+    gripper close commanded out of the fingers' reach (horizontally beyond veto_reach_m from the
+    object's origin, or delta_grasp_m when the reach is 0, or more than veto_height_m above it),
+    and a release commanded in transport. One entry per onset (the frame the command switches)."""
     lay = cfg.action_layout
     g = lay.gripper
     if g is None or not len(raw):
@@ -164,7 +165,8 @@ def flagged_frames(raw: np.ndarray, states: np.ndarray, phase: np.ndarray, cfg: 
     out = []
     for t in onset_close:
         above = cfg.veto_height_m > 0 and height[t] > cfg.veto_height_m
-        if d_xy[t] > cfg.delta_grasp_m or above:
+        reach = cfg.veto_reach_m if cfg.veto_reach_m > 0 else cfg.delta_grasp_m
+        if d_xy[t] > reach or above:
             out.append({"frame": int(t), "why": "gripper close far from the object",
                         "d_obj_xy_m": round(float(d_xy[t]), 4), "height_above_object_m": round(float(height[t]), 4)})
     for t in onset_open:

@@ -30,7 +30,7 @@ def test_offline_run_prints_the_summary_and_writes_everything(recorded_ds, tmp_p
     main([f"--dataset.root={recorded_ds}", f"--dataset.repo_id={REPO_ID}", f"--output_dir={out}",
           "--write_dataset=true", "--physvla.preset=paper"])
     printed = capsys.readouterr().out
-    assert "1 episodes," in printed and "success 1/1" in printed and "frames changed:" in printed
+    assert "1 episodes," in printed and "success 1/1" in printed and "frames changed (recorded actions):" in printed
     for name in ("report.md", "replay_summary.json", "replay_episodes.jsonl", "plots/episode_000000.png",
                  "dataset/meta/info.json"):
         assert (out / name).is_file(), name
