@@ -113,3 +113,16 @@ def test_release_in_transport_is_flagged():
     assert offline.flagged_frames(raw, st, phase, cfg) == [{"frame": 3, "why": "release in transport", "d_tgt_xy_m": None}]
     phase[3] = 3  # opened over the target: nothing wrong
     assert offline.flagged_frames(raw, st, phase, cfg) == []
+
+
+def test_ray_backend_gives_the_same_result(data):
+    import ray
+
+    local, _ = offline.replay_offline(data, preset(), batch=1, progress=False)
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False)
+    try:
+        remote, _ = offline.replay_offline(data, preset(), workers=2, backend="ray", batch=1, progress=False)
+    finally:
+        ray.shutdown()
+    for a, b in zip(local, remote):
+        assert np.array_equal(a["_arrays"]["corrected"], b["_arrays"]["corrected"])

@@ -25,3 +25,17 @@ def test_resim_needs_the_episode_identity(tmp_path):
     data = load("local/t", write_dataset(tmp_path / "cols", COLUMN_FEATURES, [column_episode(5)]))
     with pytest.raises(ReplayError, match="physvla.episode"):
         replay_resim(data, preset(), progress=False)
+
+
+def test_resim_on_robosuite_lift_plate(tmp_path):
+    """A recorded Lift place-on-plate failure (persistent place bias, seed 100): re-run raw it fails
+    again along the same trajectory; with the default corrector's place redirect it succeeds."""
+    from lerobot_physvla.replay.record import record
+
+    root = tmp_path / "lift"
+    out = record(root, ["lift_plate"], [100], expert={"place_bias_units": 1.7}, progress=False)
+    assert out["successes"] == 0
+    (rec,) = replay_resim(load("local/physvla_replay", root), preset(), progress=False)
+    assert rec["scene"] == "lift_plate" and rec["recorded_success"] is False
+    assert rec["raw"]["success"] is False and rec["state_divergence_m"] == 0.0
+    assert rec["corrected"]["success"] is True and rec["corrected"]["frames_changed"] > 0
