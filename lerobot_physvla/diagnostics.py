@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_physvla import metrics
+from lerobot_physvla.report import phase_timeline
 from lerobot_physvla.core.phase import PHASE_NAMES
 from lerobot_physvla.core.state import REASONS
 from lerobot_physvla.core.tick import D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, D_W_SUM
@@ -75,7 +76,7 @@ class _Episode:
             "mean_jerk": metrics.mean_jerk(eef, self.dt) if steps > 3 else float("nan"),
             "sparc": metrics.sparc(eef, self.dt),
             "ldlj": metrics.ldlj(eef, self.dt),
-            "phase_timeline": _run_length(self.phase),
+            "phase_timeline": phase_timeline(self.phase),
             "phase_fraction": {n: float((phase == i).mean()) if steps else 0.0 for i, n in enumerate(PHASE_NAMES)},
             "corrected_fraction": float((dev > 0).mean()) if steps else 0.0,
             "r_el_p50": _nanpct(self.r_el, 50), "r_el_p99": _nanpct(self.r_el, 99),
@@ -94,17 +95,6 @@ def _nanpct(x, q) -> float | None:
     x = np.asarray(x, dtype=float)
     x = x[np.isfinite(x)]
     return float(np.percentile(x, q)) if x.size else None
-
-
-def _run_length(phases) -> list[list]:
-    out: list[list] = []
-    for p in phases:
-        name = PHASE_NAMES[p] if p >= 0 else "pass-through"
-        if out and out[-1][0] == name:
-            out[-1][1] += 1
-        else:
-            out.append([name, 1])
-    return out
 
 
 class _Segment:

@@ -38,6 +38,18 @@ def corrections_by_phase(raw: np.ndarray, corrected: np.ndarray, phase: np.ndarr
     return out
 
 
+def phase_timeline(phases) -> list[list]:
+    """Run-length phase timeline: [[phase name, frames], ...] ("pass-through" for -1)."""
+    out: list[list] = []
+    for p in np.asarray(phases):
+        name = PHASE_NAMES[p] if p >= 0 else "pass-through"
+        if out and out[-1][0] == name:
+            out[-1][1] += 1
+        else:
+            out.append([name, 1])
+    return out
+
+
 def episode_row(episode, task: str, frames: int, success, phase, corrections: dict, frames_changed: int,
                 overhead_us, passthrough: dict) -> dict:
     """One line of the summary table (JSON-able)."""

@@ -30,6 +30,8 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from lerobot_physvla.replay.record import parse_range  # noqa: F401 - also this script's API
+
 FPS = 20  # LIBERO's control frequency
 HORIZON = 280
 STATE_NAMES = ["eef_x", "eef_y", "eef_z", "eef_ax", "eef_ay", "eef_az", "finger_l", "finger_r"]
@@ -40,15 +42,6 @@ FEATURES = {
     "observation.environment_state": {"dtype": "float32", "shape": (6,), "names": ENV_NAMES},
     "action": {"dtype": "float32", "shape": (7,), "names": ACTION_NAMES},
 }
-
-
-def parse_range(text: str) -> list[int]:
-    """'10-29' -> [10, ..., 29]; '0,3,5' -> [0, 3, 5]."""
-    out = []
-    for part in text.split(","):
-        lo, _, hi = part.partition("-")
-        out += list(range(int(lo), int(hi or lo) + 1))
-    return out
 
 
 def rollout(task_id: int, seeds: list[int], dart_sigma: float) -> list[dict]:

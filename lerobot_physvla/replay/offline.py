@@ -24,7 +24,7 @@ from lerobot_physvla import metrics
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.phase import PHASE_NAMES
 from lerobot_physvla.core.state import REASONS, PhysState, field_offsets, n_joints_from_size, packed_size
-from lerobot_physvla.report import corrections_by_phase
+from lerobot_physvla.report import corrections_by_phase, phase_timeline
 from lerobot_physvla.core.tick import D_OBJ, D_PHASE, D_R_EL, D_STATUS, D_TGT, D_W_SUM
 from lerobot_physvla.replay import columns as C
 from lerobot_physvla.replay.dataset import Episode, ReplayData, ReplayError
@@ -194,7 +194,7 @@ def episode_report(ep: Episode, states: np.ndarray, res: dict, cfg: PhysVLAConfi
     return {
         "episode": ep.index, "task": ep.task, "frames": ep.frames, "success": ep.success,
         "source": None if ep.source is None else [int(v) for v in ep.source],
-        "phase_timeline": _run_length(ph), "phase_fraction": {n: float((ph == i).mean()) for i, n in enumerate(PHASE_NAMES)},
+        "phase_timeline": phase_timeline(ph), "phase_fraction": {n: float((ph == i).mean()) for i, n in enumerate(PHASE_NAMES)},
         "frames_changed": int((delta.max(axis=1) > 0).sum()),
         "max_abs_change": float(delta.max()) if delta.size else 0.0,
         "corrections": corrections,
@@ -205,17 +205,6 @@ def episode_report(ep: Episode, states: np.ndarray, res: dict, cfg: PhysVLAConfi
         "flagged": flagged_frames(raw, states, ph, cfg),
         "_arrays": {"raw": raw, "corrected": cor, "phase": ph, "r_el": res["r_el"]},
     }
-
-
-def _run_length(phases) -> list[list]:
-    out: list[list] = []
-    for p in np.asarray(phases):
-        name = PHASE_NAMES[p] if p >= 0 else "pass-through"
-        if out and out[-1][0] == name:
-            out[-1][1] += 1
-        else:
-            out.append([name, 1])
-    return out
 
 
 def replay_offline(data: ReplayData, cfg: PhysVLAConfig, column_state: ColumnState | None = None,

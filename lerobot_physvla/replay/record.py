@@ -140,7 +140,8 @@ def _layout_name(layout) -> str:
     return next(k for k, v in LAYOUTS.items() if v == layout)
 
 
-def _range(text: str) -> list[int]:
+def parse_range(text: str) -> list[int]:
+    """'10-29' -> [10, ..., 29]; '0,3,5' -> [0, 3, 5]."""
     out = []
     for part in text.split(","):
         lo, _, hi = part.partition("-")
@@ -159,13 +160,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--expert", default="{}", help="ExpertConfig failure fields as JSON, e.g. '{\"action_noise\": 0.3}'")
     ap.add_argument("--physvla", action="store_true", help="run the default corrector in the loop")
     args = ap.parse_args(argv)
-    scenes = [f"{args.scene}/{t}" for t in _range(args.tasks)] if args.scene.startswith("libero_") else [args.scene]
+    scenes = [f"{args.scene}/{t}" for t in parse_range(args.tasks)] if args.scene.startswith("libero_") else [args.scene]
     cfg = None
     if args.physvla:
         from lerobot_physvla.core.config import preset
 
         cfg = preset()
-    out = record(args.root, scenes, _range(args.seeds), args.repo_id, args.policy_path, json.loads(args.expert), cfg)
+    out = record(args.root, scenes, parse_range(args.seeds), args.repo_id, args.policy_path, json.loads(args.expert), cfg)
     print(f"recorded {out['episodes']} episodes ({out['successes']} successful), {out['frames']} frames -> {args.root}")
 
 
