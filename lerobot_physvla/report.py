@@ -167,16 +167,17 @@ def _phase_bands(ax, phase: np.ndarray) -> None:
             start = t
 
 
-def write_report(out_dir: str | Path, title: str, table_md: str, plots: list[tuple[str, Path]], notes: list[str] = ()) -> Path:
-    """report.md in out_dir: the summary table, notes, and links to the per-episode plots."""
+def write_report(out_dir: str | Path, title: str, table_md: str, plots: list[tuple[str, Path]], notes: list[str] = (),
+                 name: str = "report.md") -> Path:
+    """`name` (report.md) in out_dir: the summary table, notes, and links to the per-episode plots."""
     out = Path(out_dir)
     lines = [f"# {title}", "", table_md, ""]
     lines += [f"- {n}" for n in notes]
     if plots:
         lines += ["", "## Episodes", ""]
-        for name, p in plots:
+        for label, p in plots:
             rel = Path(p).relative_to(out) if Path(p).is_relative_to(out) else Path(p)
-            lines += [f"### {name}", "", f"![{name}]({rel.as_posix()})", ""]
-    path = out / "report.md"
+            lines += [f"### {label}", "", f"![{label}]({rel.as_posix()})", ""]
+    path = out / name
     path.write_text("\n".join(lines) + "\n")
     return path

@@ -42,6 +42,7 @@ def test_plot_and_report_files(tmp_path):
     phase = np.repeat([0, 1, 2], 10)
     png = report.plot_episode(tmp_path / "plots" / "ep.png", raw, cor, phase, np.full(t, 0.1), 0.05, LIBERO_OSC_POSE, "ep")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    md = report.write_report(tmp_path, "title", "| table |", [("episode 0", png)], ["a note"])
+    md = report.write_report(tmp_path, "title", "| table |", [("episode 0", png)], ["a note"], name="physvla_report.md")
+    assert md == tmp_path / "physvla_report.md"
     text = md.read_text()
     assert "![episode 0](plots/ep.png)" in text and "- a note" in text

@@ -39,7 +39,51 @@ def _write_diagnostics(cfg, step) -> None:
     path = recorder.write(cfg.output_dir, config=step.config)
     counts = dict(step.passthrough_counts) or "none"
     logging.info("physvla: diagnostics written to %s (pass-throughs: %s)", path, counts)
-    print(f"physvla: diagnostics in {Path(path).parent} (physvla_diagnostics.json, physvla_episodes.jsonl)")
+    try:
+        _write_report(Path(cfg.output_dir), recorder, step.cfg)
+    except Exception as e:  # noqa: BLE001 - a plot must never fail an evaluation
+        logging.warning("physvla: the summary report could not be drawn (%r); the JSON diagnostics are complete", e)
+    print(f"physvla: diagnostics in {Path(path).parent} (physvla_diagnostics.json, physvla_episodes.jsonl, "
+          "physvla_report.md, physvla_plots/)")
+
+
+def _write_report(out: Path, recorder, pcfg, plots: int = 10) -> None:
+    """The summary table (printed) and physvla_report.md with one plot per episode (the first `plots`)."""
+    import numpy as np
+
+    from lerobot_physvla import report
+
+    lay = pcfg.action_layout
+    records = recorder.records()
+    summary = recorder.summary(records)
+    rows, drawn = [], []
+    eps = pcfg.eps_nm if pcfg.mode == "phys_el" and pcfg.el_mode != "off" else None
+    for k, r in enumerate(records):
+        raw, cor = np.asarray(r["raw_actions"], float), np.asarray(r["corrected_actions"], float)
+        phase = np.asarray(r["phase"], int)
+        changed = int((np.abs(cor - raw).max(axis=1) > 0).sum()) if len(raw) else 0
+        rows.append(report.episode_row(r["episode"], f"task {r['task_id']}", r["steps"], r["success"], phase,
+                                       report.corrections_by_phase(raw, cor, phase, lay), changed,
+                                       r["overhead_us_p50"], r["passthrough"]))
+        if k < plots and len(raw):
+            r_el = np.array([np.nan if v is None else v for v in r["r_el"]], float)
+            drawn.append((f"episode {r['episode']} (task {r['task_id']})", report.plot_episode(
+                out / "physvla_plots" / f"episode_{r['episode']:04d}.png", raw, cor, phase, r_el, eps, lay,
+                f"episode {r['episode']}, task {r['task_id']}: {pcfg.mode}")))
+    lo, hi = summary["success_ci95"]
+    t = summary["overhead_us_per_env_step"]
+    fmt = lambda v: "-" if v is None else f"{v:.1f}"  # noqa: E731
+    extra = {
+        "success": f"{(summary['success_rate'] or 0) * 100:.0f} % [95 % CI {lo * 100:.0f}, {hi * 100:.0f}]",
+        "approach veto fired": f"{summary['veto_fire_rate'] * 100:.1f} % of approach steps",
+        "corrector overhead per env-step": f"p50 {fmt(t['p50'])} us, p99 {fmt(t['p99'])} us",
+        "pass-throughs": ", ".join(f"{k} {v}" for k, v in summary["passthrough"].items()) or "none",
+    }
+    print(report.summary_table(rows, extra))
+    md = report.write_report(out, "lerobot-eval --policy.postprocess=physvla", report.summary_table(rows, extra, markdown=True),
+                             drawn, [f"corrector: {pcfg.mode}; JSON: physvla_diagnostics.json, physvla_episodes.jsonl"],
+                             name="physvla_report.md")
+    logging.info("physvla: report in %s", md)
 
 
 def activate_eval(argv: list[str]) -> None:

@@ -46,8 +46,13 @@ def test_corrected_state_only_run_executes_exactly_what_the_corrector_says(polic
     out = tmp_path / "corrected"
     state_only = ["--env.type=libero_physvla", "--env.cameras=false", "--eval.n_episodes=2",
                   "--eval.batch_size=2", "--env.episode_length=12"]
-    _eval(policies["state"], out, [*state_only, "--policy.postprocess=physvla", "--physvla.mode=phys_el",
-                                   "--physvla.gripper_rule=veto"], {"PHYSVLA_SAVE_STATES": "1"})
+    r = _eval(policies["state"], out, [*state_only, "--policy.postprocess=physvla", "--physvla.mode=phys_el",
+                                       "--physvla.gripper_rule=veto"], {"PHYSVLA_SAVE_STATES": "1"})
+    # the summary table is printed and the report links a plot per episode
+    assert "2 episodes, 24 frames, success 0/2" in r.stdout and "corrector overhead per env-step" in r.stdout
+    report = (out / "physvla_report.md").read_text()
+    for k in range(2):
+        assert f"physvla_plots/episode_{k:04d}.png" in report and (out / f"physvla_plots/episode_{k:04d}.png").is_file()
     info = json.loads((out / "eval_info.json").read_text())
     assert info["overall"]["n_episodes"] == 2
     diag = json.loads((out / "physvla_diagnostics.json").read_text())
