@@ -23,11 +23,11 @@ import numpy as np
 from lerobot_physvla import metrics
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.phase import PHASE_NAMES
-from lerobot_physvla.core.state import REASONS, PhysState, field_offsets, n_joints_from_size, packed_size
-from lerobot_physvla.report import corrections_by_phase, phase_timeline
+from lerobot_physvla.core.state import REASONS, field_offsets, n_joints_from_size, packed_size
 from lerobot_physvla.core.tick import D_OBJ, D_PHASE, D_R_EL, D_STATUS, D_TGT, D_W_SUM
 from lerobot_physvla.replay import columns as C
 from lerobot_physvla.replay.dataset import Episode, ReplayData, ReplayError
+from lerobot_physvla.report import corrections_by_phase, phase_timeline
 
 # observation.state layouts the column state understands, by robot type: dim -> (eef xyz slice, finger indices)
 STATE_MAPS: dict[str, dict[int, tuple[slice, tuple[int, ...]]]] = {
