@@ -41,35 +41,21 @@ class ExpertBackbone:
 
 
 class LeRobotBackbone:
-    """A trained LeRobot policy (checkpoint directory `path`) acting on a LIBERO scene.
+    """A trained LeRobot policy (checkpoint directory `path`) acting on a LIBERO scene: the replay's
+    `LeRobotPolicy` (saved pre/post-processors, CPU) fed the scene's state observation.
 
     Attributes:
         policy: the PreTrainedPolicy (eval mode, CPU).
-        preprocess, postprocess: its saved processor pipelines (normalisation in / out).
     """
 
     def __init__(self, path: str):
-        import torch
+        from lerobot_physvla.replay.policy import LeRobotPolicy
 
-        from lerobot.configs.policies import PreTrainedConfig
-        from lerobot.policies.factory import get_policy_class, make_pre_post_processors
-
-        cfg = PreTrainedConfig.from_pretrained(path)
-        cfg.device = "cpu"
-        self.policy = get_policy_class(cfg.type).from_pretrained(path, config=cfg)
-        self.policy.eval()
-        self.preprocess, self.postprocess = make_pre_post_processors(cfg, pretrained_path=path)
-        self._torch = torch
+        self._runner = LeRobotPolicy(path)
+        self.policy = self._runner.policy
 
     def reset(self, seed: int) -> None:
-        self._torch.manual_seed(seed)  # diffusion sampling noise: matched across modes per seed
-        self.policy.reset()
+        self._runner.reset(seed)  # diffusion sampling noise: matched across modes per seed
 
     def act(self, scene, state) -> np.ndarray:
-        torch = self._torch
-        obs = scene.policy_observation(state)
-        batch = {k: torch.from_numpy(v)[None] for k, v in obs.items()}
-        batch["task"] = [scene.task.language]
-        with torch.inference_mode():
-            action = self.postprocess(self.policy.select_action(self.preprocess(batch)))
-        return action[0].double().numpy()
+        return self._runner.act(scene.policy_observation(state), scene.task.language)

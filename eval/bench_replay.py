@@ -53,7 +53,7 @@ def build(frames: int, cache: Path) -> Path:
              if k not in ("timestamp", "frame_index", "episode_index", "index", "task_index")}
     ds = LeRobotDataset.create(REPO, fps=int(src.fps), features=feats, root=big, robot_type=src.robot_type,
                                use_videos=False, video_backend="pyav")
-    table = D._table(src.dataset)
+    table = D.arrow_table(src.dataset)
     cols = {k: D.column(table, k) for k in feats}
     n, k = 0, 0
     t0 = time.time()
@@ -102,7 +102,7 @@ def main() -> None:
 
     t0 = time.perf_counter()
     ds = LeRobotDataset(REPO, root=root, video_backend="pyav")
-    table = D._table(ds)
+    table = D.arrow_table(ds)
     for name in ds.features:
         if ds.features[name]["dtype"] not in ("string", "image", "video") and name in table.column_names:
             D.column(table, name)

@@ -98,7 +98,8 @@ def quiet() -> None:
     disable_progress_bar()
 
 
-def _table(ds):
+def arrow_table(ds):
+    """The Arrow table behind a LeRobotDataset (its rows, in stored order and dtype)."""
     hf = ds.hf_dataset
     if getattr(hf, "_indices", None) is None:
         return hf.data.table
@@ -118,7 +119,7 @@ def load(repo_id: str, root: str | Path | None, episodes: list[int] | None = Non
     quiet()
     try:
         ds = LeRobotDataset(repo_id, root=root, video_backend="pyav")  # state columns: no video decoder to probe
-        table = _table(ds)
+        table = arrow_table(ds)
     except Exception as e:  # noqa: BLE001 - any reading failure becomes one line naming the dataset
         first = str(e).strip().splitlines()[0] if str(e).strip() else ""
         raise ReplayError(f"could not read the dataset at {root} ({type(e).__name__}: {first[:200]}); "

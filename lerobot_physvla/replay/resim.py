@@ -76,19 +76,26 @@ def resim_shard(cfg_dict: dict, items: list[tuple], batch: int = 64) -> list[dic
     return out
 
 
+def check_resimulable(data: ReplayData) -> None:
+    """ReplayError unless every selected episode names a scene re-simulation supports."""
+    if C.EPISODE not in data.features:
+        raise ReplayError(f"re-simulation needs the {C.EPISODE} column ([scene, task id, seed]) that "
+                          f"python -m lerobot_physvla.replay.record writes; this dataset has none")
+    for ep in data.episodes:
+        name, _ = C.scene_of(ep.source)
+        if name.partition("/")[0] not in C.RESIM_SCENES:
+            raise ReplayError(f"episode {ep.index}: re-simulation supports {', '.join(C.RESIM_SCENES)}, not {name}")
+
+
 def replay_resim(data: ReplayData, cfg: PhysVLAConfig, workers: int = 1, backend: str = "process",
                  progress: bool = True) -> list[dict]:
     """Per-episode re-simulation records (recorded success beside raw and corrected)."""
     from lerobot_physvla.replay.shards import map_shards
 
-    if C.EPISODE not in data.features:
-        raise ReplayError(f"re-simulation needs the {C.EPISODE} column ([scene, task id, seed]) that "
-                          f"python -m lerobot_physvla.replay.record writes; this dataset has none")
+    check_resimulable(data)
     items = []
     for ep in data.episodes:
         name, seed = C.scene_of(ep.source)
-        if name.partition("/")[0] not in C.RESIM_SCENES:
-            raise ReplayError(f"episode {ep.index}: re-simulation supports {', '.join(C.RESIM_SCENES)}, not {name}")
         rec_eef = None
         if ep.states is not None:
             f = field_offsets(n_joints_from_size(ep.states.shape[1]))

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_physvla.replay import columns as C
-from lerobot_physvla.replay.dataset import ReplayData, ReplayError, column, quiet
+from lerobot_physvla.replay.dataset import ReplayData, ReplayError, arrow_table, column, quiet
 
 RAW_ACTION = "physvla.raw_action"
 _LEROBOT_OWN = ("timestamp", "frame_index", "episode_index", "index", "task_index")
@@ -36,8 +36,7 @@ def write_corrected(data: ReplayData, records: list[dict], out_root: str | Path,
     feats[RAW_ACTION] = dict(feats[C.ACTION])
     for f in feats.values():
         f["shape"] = tuple(f["shape"])
-    table = data.dataset.hf_dataset.data.table if getattr(data.dataset.hf_dataset, "_indices", None) is None \
-        else data.dataset.hf_dataset.with_format("arrow")[:]
+    table = arrow_table(data.dataset)
     cols = {k: column(table, k) for k in feats if k not in (C.ACTION, RAW_ACTION) and k in table.column_names}
     by_episode = {r["episode"]: r for r in records}
     ds = LeRobotDataset.create(repo_id or f"{data.repo_id}_physvla", fps=int(round(data.fps)), features=feats,

@@ -105,12 +105,10 @@ def run(args: ReplayArgs, cfg) -> dict:
     data = dataset.load(args.dataset.repo_id, args.dataset.root, args.episodes)
     if args.write_dataset:
         write.check_writable(data)
-    if args.mode == "resim" and data.episodes:
-        from lerobot_physvla.replay import columns as C
+    if args.mode == "resim":
+        from lerobot_physvla.replay.resim import check_resimulable
 
-        if C.EPISODE not in data.features:
-            raise ReplayError(f"--mode=resim needs the {C.EPISODE} column ([scene, task id, seed]) that "
-                              "python -m lerobot_physvla.replay.record writes; this dataset has none")
+        check_resimulable(data)
     column_state = offline.ColumnState(
         tuple(args.object_xyz) if args.object_xyz else None, tuple(args.target_xyz) if args.target_xyz else None)
     for ep in data.episodes[:1]:  # state and layout problems surface here, before any output
