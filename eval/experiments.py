@@ -7,6 +7,7 @@
     .venv/bin/python eval/experiments.py lift_plate  [--pairs 20]
     .venv/bin/python eval/experiments.py fetch_sweep [--trials 20]
     .venv/bin/python eval/experiments.py learned     [--per-task 5] [--checkpoints outputs/train]
+    .venv/bin/python eval/experiments.py learned_fixes [--fixes act_chunk,diffusion_chunk]
     .venv/bin/python eval/experiments.py efficacy    [--stages ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass]
 
 Each writes `eval/results/<experiment>/`: README.md (the table, with this command, how long it
@@ -28,6 +29,8 @@ re-running the same command skips the units already written under `units/`.
   layout, another arm, task_space EL weighting): the corrector is not tied to one simulator.
 - learned: the LeRobot ACT / Diffusion backbones trained by policies/train_backbones.py x modes
   x the 10 tasks (Table 2 layout).
+- learned_fixes: each defect found in the learned backbones, measured alone: a recipe trained as
+  shipped and with the defect put back (`train_backbones.py NAME --raw-env`), uncorrected, paired.
 - efficacy: does the corrector do good (eval/efficacy.py): per-correction ablation, the shipped
   default vs baseline vs temporal vs the paper's two readings on a design and a confirmation
   seed block, paired outcomes; Lift / Fetch noise at sigma 0 and 0.40.
@@ -372,39 +375,96 @@ def lift_plate(args) -> None:
 
 
 def learned(args) -> None:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "policies"))
+    import train_backbones
+
     out = RESULTS / "learned"
-    ckpt_root = Path(args.checkpoints)
     names = [n for n in args.learned.split(",")]
-    missing = [n for n in names if not (ckpt_root / n / "checkpoints" / "last" / "pretrained_model").exists()]
+    ckpts = {n: train_backbones.checkpoint(n, args.checkpoints) for n in names}
+    missing = [n for n, c in ckpts.items() if not (c / "model.safetensors").exists()]
     if missing:
-        raise SystemExit(f"experiments: no checkpoint for {missing} under {ckpt_root}; "
+        raise SystemExit(f"experiments: no checkpoint for {missing} under {args.checkpoints}; "
                          "run policies/record_dataset.py then policies/train_backbones.py")
     units = [
-        Unit(n, m, PhysVLAConfig(mode=m).to_dict(), t, s, k,
-             policy=str((ckpt_root / n / "checkpoints" / "last" / "pretrained_model").resolve()))
+        Unit(n, m, PhysVLAConfig(mode=m).to_dict(), t, s, k, policy=str(ckpts[n].resolve()))
         for n in names for m in MODES for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
     ]
     records, secs = run_units(units, out, args.workers, args.backend)
     (out / "recipes").mkdir(exist_ok=True)
-    for n in names:  # provenance: the lerobot-train command, seed and training time of each checkpoint
-        recipe = ckpt_root / n / "checkpoints" / "last" / "pretrained_model" / "recipe.json"
+    provenance = []
+    for n in names:  # the lerobot-train command, seed, device and training time of each checkpoint
+        recipe = ckpts[n] / "recipe.json"
         if recipe.exists():
             (out / "recipes" / f"{n}.json").write_text(recipe.read_text())
+            r = json.loads(recipe.read_text())
+            ds = r.get("dataset", {})
+            provenance.append(f"| {n} | {r['recipe']} | {r.get('checkpoint', 'last')} of {r.get('steps', '?')} | "
+                              f"{r.get('device', 'CPU')} | {r['train_seconds'] / 60:.1f} | "
+                              f"{ds.get('episodes', '?')} episodes, {ds.get('frames', '?')} frames | "
+                              f"`{str(r.get('commit', '?'))[:7]}` |")
     agg = aggregate(records)
     rows = [(n, m) for n in names for m in MODES]
     pt, flags = per_task_table(records, names, MODES)
     plot_success(agg, rows, out / "success_jerk.png", "LIBERO-Spatial, learned backbones x modes")
     lines = header("Learned backbones (LeRobot ACT / Diffusion, state inputs) x modes on LIBERO-Spatial", secs,
                    len(units), about=(
-                       "Backbones: LeRobot policies trained on the CPU by policies/train_backbones.py (each one's "
-                       "lerobot-train command, seed and training time: recipes/<name>.json) from scripted-expert "
-                       "demonstrations (clean expert, DART noise 0.1, successful episodes only) on init "
-                       "states 10-39 (policies/record_dataset.py); evaluated on init states 0 .. per-task - 1. Success "
-                       "is LIBERO's own check; rates with 95 % Wilson intervals."))
+                       "Backbones: LeRobot policies trained with lerobot-train by policies/train_backbones.py (each "
+                       "one's command, seed, device and training time: recipes/<name>.json; `_weak` = an earlier "
+                       "checkpoint of the same run) on scripted-expert demonstrations (clean expert labels, DART "
+                       "noise 0.1 and 0.3 on the executed x, y actions, successful episodes only) from init states "
+                       "10-39 (policies/record_dataset.py); evaluated on init states 0 .. per-task - 1, which no "
+                       "training or checkpoint choice used. Success is LIBERO's own check; rates with 95 % Wilson "
+                       "intervals."))
+    if provenance:
+        lines += ["## Checkpoints\n", "| backbone | recipe | checkpoint (step) | trained on | minutes | data | commit |",
+                  "|---|---|---|---|---|---|---|", *provenance, ""]
+    import efficacy as ef
+
+    paired = [ef.paired_row(f"{n} / {m}", ef.paired(records, m, n)) for n in names for m in MODES[1:]]
     lines += ["## Aggregate over the 10 tasks\n", *summary_table(agg, rows), "",
+              "## Paired outcomes against baseline (same backbone, same init state)\n", *ef.PAIRED_HEAD, *paired, "",
               "## Per task (successes / episodes; (+)/(-) = more / fewer than baseline, same backbone and seeds)\n",
               *pt, "", "## Per-task regressions against baseline\n",
               *([f"- {f}" for f in flags] or ["- none"]), "", "![success and jerk](success_jerk.png)"]
+    write(out, lines, records)
+
+
+def learned_fixes(args) -> None:
+    """Each defect of the learned backbones measured alone: the same recipe, data, steps and seed
+    trained with the defect and without it; uncorrected success on the same init states, paired."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "policies"))
+    import efficacy as ef
+    import train_backbones
+
+    out = RESULTS / "learned_fixes"
+    out.mkdir(parents=True, exist_ok=True)
+    fixed = args.fixes.split(",")
+    defects = {n: n + train_backbones.RAW_ENV for n in fixed}  # observation.environment_state left raw
+    names = [*fixed, *defects.values()]
+    ckpts = {n: train_backbones.checkpoint(n, args.checkpoints) for n in names}
+    missing = [n for n, c in ckpts.items() if not (c / "model.safetensors").exists()]
+    if missing:
+        raise SystemExit(f"experiments: no checkpoint for {missing} under {args.checkpoints}; train them with "
+                         "policies/train_backbones.py NAME (and --raw-env for the defect)")
+    units = [Unit(n, "baseline", PhysVLAConfig(mode="baseline").to_dict(), t, s, k, policy=str(ckpts[n].resolve()))
+             for n in names for t in range(10) for s, k in seed_blocks(args.per_task, args.block)]
+    # the units are the learned experiment's (same key, same weights): shared, run once
+    records, secs = run_units(units, RESULTS / "learned", args.workers, args.backend)
+    rows = []
+    for n, d in defects.items():
+        recs = ([dict(r, config="fixed") for r in records if r["backbone"] == n]
+                + [dict(r, backbone=n, config="defect") for r in records if r["backbone"] == d])
+        rows.append(ef.paired_row(f"{n}: environment_state normalised / left raw", ef.paired(recs, "fixed", n,
+                                                                                             base="defect")))
+    lines = header("Defects of the learned backbones, each measured alone (uncorrected success)", secs, len(units),
+                   about=("Each row: one recipe of policies/train_backbones.py trained twice on the same dataset, "
+                          "steps and seed, once as shipped and once with the defect put back "
+                          "(`train_backbones.py NAME --raw-env`: no ENV entry in --policy.normalization_mapping, so "
+                          "lerobot 0.6.1 leaves observation.environment_state -- object and target xyz, metres -- "
+                          "un-normalised); both evaluated uncorrected on the same LIBERO-Spatial init states 0 .. "
+                          "per-task - 1 of the 10 tasks. `baseline` = with the defect, `this` = without."))
+    lines += ["| recipe | pairs | baseline | this | paired difference [95 % CI] | won / lost / both / neither | "
+              "jerk / baseline's | tasks that lost |", "|---|---|---|---|---|---|---|---|", *rows]
     write(out, lines, records)
 
 
@@ -475,9 +535,12 @@ def main() -> None:
     ap.add_argument("--bias-units", type=float, default=1.7, help="lift_plate: maximum bias, action units")
     ap.add_argument("--trials", type=int, default=20, help="lift_sweep / fetch_sweep: trials per (sigma, mode)")
     ap.add_argument("--checkpoints", default="outputs/train", help="learned: where train_backbones.py wrote")
+    ap.add_argument("--fixes", default="act_chunk,diffusion_chunk",
+                    help="learned_fixes: recipes trained as shipped and with --raw-env")
     # diffusion_single is left out by default: 10 denoising passes per control step make it ~10x
     # slower to evaluate on this CPU than the others
-    ap.add_argument("--learned", default="act_single,act_chunk,diffusion_chunk",
+    ap.add_argument("--learned", default="act_single,act_single_weak,act_chunk,act_chunk_weak,diffusion_chunk,"
+                                         "diffusion_chunk_weak",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
     ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass", help="efficacy: which stages to run")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
@@ -487,7 +550,8 @@ def main() -> None:
 
 
 EXPERIMENTS = {"table2": table2, "ablation": ablation, "place_bias": place_bias, "lift_sweep": lift_sweep,
-               "lift_plate": lift_plate, "fetch_sweep": fetch_sweep, "learned": learned, "efficacy": efficacy}
+               "lift_plate": lift_plate, "fetch_sweep": fetch_sweep, "learned": learned,
+               "learned_fixes": learned_fixes, "efficacy": efficacy}
 
 if __name__ == "__main__":
     main()

@@ -14,6 +14,7 @@ driver, which writes them, so workers need lerobot_physvla installed but no shar
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import sys
@@ -150,7 +151,15 @@ def compute_unit(unit: Unit) -> dict:
         rec = run_episode(scene, corrector, backbone, unit.first_seed + k)
         rec.update(backbone=unit.backbone, config=unit.config_name, task_id=unit.task_id, scene=unit.scene)
         records.append(rec)
-    return {"unit": asdict(unit), "seconds": time.time() - t0, "records": records}
+    payload = {"unit": asdict(unit), "seconds": time.time() - t0, "records": records}
+    if unit.policy:
+        payload["policy_sha256"] = policy_fingerprint(unit.policy)
+    return payload
+
+
+def policy_fingerprint(path: str | Path) -> str:
+    """sha256 of a checkpoint's weights (model.safetensors): which trained policy a unit ran."""
+    return hashlib.sha256((Path(path) / "model.safetensors").read_bytes()).hexdigest()
 
 
 def _write(out_dir: str | Path, key: str, payload: dict) -> None:
@@ -220,7 +229,8 @@ def run_units(units: list[Unit], out_dir: str | Path, workers: int | None = None
 
 def _check_stale(done: list[Unit], out: Path) -> None:
     """A unit on disk is keyed by names, not by its configuration: refuse to reuse one whose
-    corrector configuration or expert differs from what is asked now (a preset changed since)."""
+    corrector configuration or expert differs from what is asked now (a preset changed since), or
+    that ran other weights than the learned backbone's checkpoint holds now (it was retrained)."""
     from lerobot_physvla.core.config import PhysVLAConfig
 
     def effective(d: dict) -> PhysVLAConfig:  # the low-pass's parameters matter only when it is on
@@ -230,10 +240,14 @@ def _check_stale(done: list[Unit], out: Path) -> None:
 
     for u in done:
         path = out / "units" / f"{u.key}.json"
-        was = json.loads(path.read_text())["unit"]
+        payload = json.loads(path.read_text())
+        was = payload["unit"]
         if (effective(was["config"]) != effective(u.config)
                 or was.get("expert", {}) != u.expert):
             raise SystemExit(f"harness: {path} was run with another configuration than {u.config_name!r} has now; "
+                             "delete it to re-run that unit")
+        if u.policy and payload.get("policy_sha256") != policy_fingerprint(u.policy):
+            raise SystemExit(f"harness: {path} was run with other weights than {u.policy} holds now (retrained); "
                              "delete it to re-run that unit")
 
 

@@ -1,7 +1,7 @@
 """Record scripted-expert rollouts on LIBERO-Spatial into a local LeRobotDataset (v3), state only.
 
     .venv/bin/python policies/record_dataset.py [--out outputs/datasets/physvla_libero_spatial]
-        [--seeds 10-39] [--tasks 0-9] [--dart-sigma 0.1] [--workers 2]
+        [--seeds 10-39] [--tasks 0-9] [--dart-sigma 0.1,0.3] [--workers 2]
 
 Each frame holds what a state-based policy sees in `lerobot-eval --env.type=libero_physvla
 --env.cameras=false` (scenes.LiberoScene.policy_observation):
@@ -11,7 +11,9 @@ Each frame holds what a state-based policy sees in `lerobot-eval --env.type=libe
     task                           the task's language instruction
 Only successful episodes are kept. With --dart-sigma > 0 the *executed* action gets Gaussian
 x, y noise (action units) while the *recorded* label stays the expert's clean action (DART), so
-the demonstrations cover the states a slightly-off learned policy will visit.
+the demonstrations cover the states a slightly-off learned policy will visit. Several noise
+levels (`--dart-sigma 0.1,0.3`) record each init state once per level, each with its own noise
+draw: more varied recoveries from the same starts.
 
 Init states: LIBERO has 50 per task; evaluation (eval/experiments.py) uses seeds 0..N-1, so the
 default training seeds 10-39 never overlap the evaluation's first 10.
@@ -44,7 +46,7 @@ FEATURES = {
 }
 
 
-def rollout(task_id: int, seeds: list[int], dart_sigma: float) -> list[dict]:
+def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0) -> list[dict]:
     """Expert episodes of one task; returns the successful ones as arrays (runs in a worker)."""
     from lerobot_physvla.sim.experts import PickPlaceExpert
     from lerobot_physvla.sim.scenes import LiberoScene
@@ -55,7 +57,7 @@ def rollout(task_id: int, seeds: list[int], dart_sigma: float) -> list[dict]:
     for seed in seeds:
         scene.reset(seed)
         expert.reset(seed=seed)
-        rng = np.random.default_rng(10_000 + seed)
+        rng = np.random.default_rng(10_000 + seed + 1_000_000 * level)  # level 0: the original draws
         obs_s, obs_e, acts, success = [], [], [], False
         for _ in range(HORIZON):
             st = scene.read()
@@ -71,7 +73,7 @@ def rollout(task_id: int, seeds: list[int], dart_sigma: float) -> list[dict]:
             if success:
                 break
         if success:
-            episodes.append({"task_id": task_id, "seed": seed, "task": scene.task.language,
+            episodes.append({"task_id": task_id, "seed": seed, "dart_sigma": dart_sigma, "task": scene.task.language,
                              "state": np.asarray(obs_s), "env": np.asarray(obs_e), "action": np.asarray(acts)})
     return episodes
 
@@ -82,17 +84,19 @@ def main() -> None:
     ap.add_argument("--repo-id", default="local/physvla_libero_spatial")
     ap.add_argument("--tasks", default="0-9")
     ap.add_argument("--seeds", default="10-39", help="LIBERO init-state indices to record")
-    ap.add_argument("--dart-sigma", type=float, default=0.1)
+    ap.add_argument("--dart-sigma", default="0.1,0.3",
+                    help="executed-action x, y noise (action units); a comma list records each init state once per level")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     args = ap.parse_args()
 
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     tasks, seeds = parse_range(args.tasks), parse_range(args.seeds)
+    sigmas = [float(x) for x in str(args.dart_sigma).split(",") if x.strip()]
     t0 = time.time()
     episodes = []
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        futures = [pool.submit(rollout, t, seeds, args.dart_sigma) for t in tasks]
+        futures = [pool.submit(rollout, t, seeds, sig, lvl) for lvl, sig in enumerate(sigmas) for t in tasks]
         for f in tqdm(futures, desc="tasks", unit="task"):
             episodes += f.result()
     out = Path(args.out)
@@ -105,10 +109,11 @@ def main() -> None:
         ds.save_episode()
     ds.finalize()
     kept = {t: sum(e["task_id"] == t for e in episodes) for t in tasks}
+    n_runs = len(seeds) * len(sigmas)
     frames = sum(len(e["action"]) for e in episodes)
-    print(f"recorded {len(episodes)} of {len(tasks) * len(seeds)} episodes (successful only), {frames} frames, "
+    print(f"recorded {len(episodes)} of {len(tasks) * n_runs} episodes (successful only), {frames} frames, "
           f"in {time.time() - t0:.0f} s -> {out}")
-    print("kept per task: " + ", ".join(f"T{t}: {k}/{len(seeds)}" for t, k in kept.items()))
+    print("kept per task: " + ", ".join(f"T{t}: {k}/{n_runs}" for t, k in kept.items()))
     if not episodes:
         sys.exit("record_dataset: no successful episode; nothing to train on")
 

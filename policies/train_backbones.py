@@ -1,21 +1,33 @@
-"""Training recipes for the learned backbones: LeRobot ACT and Diffusion on the expert dataset, CPU.
+"""Training recipes for the learned backbones: LeRobot ACT and Diffusion on the expert dataset.
 
     .venv/bin/python policies/record_dataset.py                 # once: the dataset
     .venv/bin/python policies/train_backbones.py act_chunk      # one recipe (or: all)
-    .venv/bin/python policies/train_backbones.py --list
+    .venv/bin/python policies/train_backbones.py --list         # each recipe's lerobot-train command
+    python3 policies/train_backbones.py all --device cuda --num-workers 3   # the same recipes on a GPU
 
 Each recipe is one `lerobot-train` command (printed before it runs, and saved beside the
-checkpoint as recipe.json) on the local dataset, state inputs only (observation.state +
-observation.environment_state), fixed seed, no hub, no wandb, no env (so no evaluation during training),
-data loaded in the training process (a step costs ~130 ms of dataset reads and ~40 ms of compute
-here, so one core per recipe is the efficient split: run two recipes side by side on 2 cores).
-The checkpoint lands in outputs/train/<recipe>/checkpoints/last/pretrained_model, which is what
-eval/experiments.py learned uses (or `lerobot-eval --policy.path=... --env.type=libero_physvla
---env.cameras=false`). Sizes are chosen to train in minutes on 2 CPU cores:
+checkpoint as recipe.json with the device it ran on and how long it took) on the local dataset,
+state inputs only (observation.state + observation.environment_state), fixed seed, no hub, no
+wandb, no env (so no evaluation during training). `--device` and `--num-workers` say where a
+recipe runs, not what it learns: the recipe (policy, sizes, steps, seed, data) is the same on the
+CPU and on a GPU. The checkpoints land in outputs/train/<recipe>/checkpoints/<step>/pretrained_model
+(every fifth of the steps; `last` is the final one), which eval/experiments.py learned uses (or
+`lerobot-eval --policy.path=... --env.type=libero_physvla --env.cameras=false`).
+
     act_single        ACT, chunk 1 (a single-step policy)
     act_chunk         ACT, chunk 20, executes 10 before re-planning
     diffusion_single  Diffusion (DDIM, 10 denoising steps), re-plans every step
     diffusion_chunk   Diffusion, executes 8 of its 16-step horizon before re-planning
+
+Weak siblings (`SIBLINGS`) are earlier checkpoints of the same runs: the same recipe stopped
+early, so the corrector is judged on a weak and a strong policy of one family.
+
+Normalisation: lerobot 0.6.1's ACT and Diffusion configs normalise only the VISUAL, STATE and
+ACTION feature types; `observation.environment_state` (type ENV: object and target xyz, metres)
+falls through to IDENTITY and reaches the network raw, where the object's position across init
+states spans a few centimetres of a ~1 m value. Every recipe names ENV in
+`--policy.normalization_mapping` (tests/policies/test_train_backbones.py checks that the saved
+preprocessor normalises it).
 """
 
 from __future__ import annotations
@@ -23,6 +35,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import platform
+import shlex
 import shutil
 import subprocess
 import sys
@@ -33,60 +47,111 @@ from pathlib import Path
 DATASET = "outputs/datasets/physvla_libero_spatial"
 REPO_ID = "local/physvla_libero_spatial"
 SEED = 1000
+CHECKPOINTS_PER_RUN = 5  # a checkpoint every fifth of the steps: the weak siblings come from them
 
-_COMMON = ["--policy.device=cpu", "--policy.push_to_hub=false", "--wandb.enable=false",
-           "--num_workers=0", "--log_freq=200", f"--seed={SEED}"]
+_COMMON = ["--policy.push_to_hub=false", "--wandb.enable=false", "--log_freq=200", f"--seed={SEED}"]
 _ACT = ["--policy.type=act", "--policy.dim_model=128", "--policy.n_heads=4", "--policy.dim_feedforward=512",
         "--policy.n_encoder_layers=2", "--policy.n_decoder_layers=1", "--policy.latent_dim=16",
-        "--policy.optimizer_lr=3e-4", "--batch_size=32"]
+        "--policy.optimizer_lr=3e-4", "--batch_size=32",
+        '--policy.normalization_mapping={"VISUAL": "MEAN_STD", "STATE": "MEAN_STD", "ENV": "MEAN_STD", '
+        '"ACTION": "MEAN_STD"}']
 _DIFFUSION = ["--policy.type=diffusion", "--policy.n_obs_steps=2", "--policy.horizon=16",
               "--policy.down_dims=[64,128,256]", "--policy.diffusion_step_embed_dim=64",
               "--policy.noise_scheduler_type=DDIM", "--policy.num_inference_steps=10", "--policy.optimizer_lr=3e-4",
-              "--batch_size=32"]
+              "--batch_size=32",
+              '--policy.normalization_mapping={"VISUAL": "MEAN_STD", "STATE": "MIN_MAX", "ENV": "MIN_MAX", '
+              '"ACTION": "MIN_MAX"}']
 
-RECIPES: dict[str, list[str]] = {
-    # a chunk-1 sample reads 1 action frame instead of 20, so 5x the steps cost about the same time
-    "act_single": _ACT + ["--policy.chunk_size=1", "--policy.n_action_steps=1", "--policy.use_vae=false",
-                          "--steps=15000", "--save_freq=15000"],
-    "act_chunk": _ACT + ["--policy.chunk_size=20", "--policy.n_action_steps=10", "--steps=3000", "--save_freq=3000"],
-    "diffusion_single": _DIFFUSION + ["--policy.n_action_steps=1", "--steps=4000", "--save_freq=4000"],
-    "diffusion_chunk": _DIFFUSION + ["--policy.n_action_steps=8", "--steps=4000", "--save_freq=4000"],
+# name -> (lerobot-train arguments, steps). Steps are sized to train within about an hour on this
+# 2-core CPU, two recipes side by side (recipe.json records the time each run took).
+RECIPES: dict[str, tuple[list[str], int]] = {
+    "act_single": (_ACT + ["--policy.chunk_size=1", "--policy.n_action_steps=1", "--policy.use_vae=false"], 20000),
+    "act_chunk": (_ACT + ["--policy.chunk_size=20", "--policy.n_action_steps=10"], 12000),
+    "diffusion_single": (_DIFFUSION + ["--policy.n_action_steps=1"], 10000),
+    "diffusion_chunk": (_DIFFUSION + ["--policy.n_action_steps=8"], 10000),
+}
+
+# weak sibling -> (recipe, training step of the earlier checkpoint it is): the first checkpoint of
+# each run (a fifth of its steps), fixed before any of them was evaluated
+SIBLINGS: dict[str, tuple[str, int]] = {
+    "act_single_weak": ("act_single", 4000),
+    "act_chunk_weak": ("act_chunk", 2400),
+    "diffusion_chunk_weak": ("diffusion_chunk", 2000),
 }
 
 
-def command(name: str, dataset: str, out_root: str, steps: int | None = None) -> list[str]:
-    """The lerobot-train argv of a recipe (optionally with fewer steps, for smoke tests)."""
-    args = list(RECIPES[name])
-    if steps is not None:
-        args = [a for a in args if not a.startswith(("--steps=", "--save_freq="))]
-        args += [f"--steps={steps}", f"--save_freq={steps}"]
+RAW_ENV = "_rawenv"  # suffix of the ablation that reproduces the normalisation defect (ENV left raw)
+
+
+def command(name: str, dataset: str, out_root: str, steps: int | None = None, device: str = "cpu",
+            num_workers: int = 0, raw_env: bool = False) -> list[str]:
+    """The lerobot-train argv of a recipe (optionally with fewer steps, for smoke tests).
+
+    raw_env: the recipe as it was before the normalisation fix (no ENV entry: lerobot's default
+    leaves observation.environment_state raw), written to <recipe>_rawenv; measures the fix."""
+    args, n = RECIPES[name]
+    n = n if steps is None else steps
+    if raw_env:
+        args = [a.replace('"ENV": "MEAN_STD", ', "").replace('"ENV": "MIN_MAX", ', "") for a in args]
+        name = name + RAW_ENV
     exe = Path(sys.executable).with_name("lerobot-train")
-    return [str(exe), f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset}", *_COMMON, *args,
-            f"--output_dir={out_root}/{name}", f"--job_name=physvla_{name}"]
+    head = [str(exe)] if exe.exists() else [sys.executable, "-m", "lerobot.scripts.lerobot_train"]
+    return [*head, f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset}", f"--policy.device={device}",
+            f"--num_workers={num_workers}", *_COMMON, *args, f"--steps={n}",
+            f"--save_freq={max(1, n // CHECKPOINTS_PER_RUN)}", f"--output_dir={out_root}/{name}",
+            f"--job_name=physvla_{name}"]
 
 
 def checkpoint(name: str, out_root: str = "outputs/train") -> Path:
+    """The pretrained_model directory of a recipe's final checkpoint, or of a weak sibling's."""
+    if name in SIBLINGS:
+        recipe, step = SIBLINGS[name]
+        return Path(out_root) / recipe / "checkpoints" / f"{step:06d}" / "pretrained_model"
     return Path(out_root) / name / "checkpoints" / "last" / "pretrained_model"
 
 
-def train(name: str, dataset: str, out_root: str, steps: int | None = None) -> Path:
+def _device_name(device: str) -> str:
+    if device.startswith("cuda"):
+        import torch
+
+        return f"{torch.cuda.get_device_name(0)} (cuda), {os.cpu_count()} CPU cores"
+    return f"{platform.machine()} CPU, {os.cpu_count()} cores, 1 torch thread"
+
+
+def _commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
+                              cwd=Path(__file__).resolve().parent).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def train(name: str, dataset: str, out_root: str, steps: int | None = None, device: str = "cpu",
+          num_workers: int = 0, raw_env: bool = False) -> Path:
     if not (Path(dataset) / "meta" / "info.json").exists():
         raise SystemExit(f"train_backbones: no dataset at {dataset}; run policies/record_dataset.py first")
+    cmd = command(name, dataset, out_root, steps, device, num_workers, raw_env)
+    name = name + RAW_ENV if raw_env else name
     out = Path(out_root) / name
     if out.exists():  # lerobot-train refuses an existing output dir without --resume
         shutil.rmtree(out)
-    cmd = command(name, dataset, out_root, steps)
-    print("+ " + " ".join(cmd), flush=True)
+    print("+ " + shlex.join(cmd), flush=True)
     t0 = time.time()
     # One torch thread: on a busy 2-core machine, 2 OpenMP threads spin-wait and a step takes ~25x
     # longer (measured: 1.7 s vs 66 ms for act_chunk's forward + backward at batch 64).
     env = {**os.environ, "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "1")}
     if subprocess.run(cmd, env=env).returncode != 0:
         raise SystemExit(f"train_backbones: lerobot-train failed for {name} (its error is above)")
-    ckpt = checkpoint(name, out_root)
-    (ckpt / "recipe.json").write_text(json.dumps({"recipe": name, "command": cmd, "train_seconds": time.time() - t0}, indent=1))
-    print(f"{name}: trained in {(time.time() - t0) / 60:.1f} min -> {ckpt}")
-    return ckpt
+    secs = time.time() - t0
+    info = json.loads((Path(dataset) / "meta" / "info.json").read_text())
+    recipe = {"recipe": name, "command": cmd, "train_seconds": secs, "device": _device_name(device),
+              "steps": int(next(a for a in cmd if a.startswith("--steps=")).split("=")[1]), "seed": SEED,
+              "commit": _commit(), "dataset": {"root": dataset, "episodes": info.get("total_episodes"),
+                                               "frames": info.get("total_frames")}}
+    for ckpt in sorted((out / "checkpoints").glob("*/pretrained_model")):  # every checkpoint knows its recipe
+        (ckpt / "recipe.json").write_text(json.dumps({**recipe, "checkpoint": ckpt.parent.name}, indent=1))
+    print(f"{name}: trained in {secs / 60:.1f} min on {recipe['device']} -> {checkpoint(name, out_root)}")
+    return checkpoint(name, out_root)
 
 
 def main() -> None:
@@ -97,14 +162,21 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=None, help="override the recipe's step count (smoke tests)")
     ap.add_argument("--list", action="store_true", help="print each recipe's command and exit")
     ap.add_argument("--parallel", type=int, default=os.cpu_count() or 1, help="recipes trained side by side")
+    ap.add_argument("--device", default="cpu", help="where lerobot-train runs (cpu, cuda): not part of the recipe")
+    ap.add_argument("--num-workers", type=int, default=0,
+                    help="lerobot-train's data-loader processes per recipe (0: read in the training process)")
+    ap.add_argument("--raw-env", action="store_true",
+                    help="ablation: leave observation.environment_state raw, as before the fix (-> <recipe>_rawenv)")
     args = ap.parse_args()
     names = list(RECIPES) if args.recipe == "all" else [args.recipe]
     if args.list:
         for n in names:
-            print(n + ":\n  " + " ".join(command(n, args.dataset, args.out)))
+            print(n + ":\n  " + shlex.join(command(n, args.dataset, args.out, None, args.device, args.num_workers,
+                                                    args.raw_env)))
         return
     with ThreadPoolExecutor(max_workers=max(1, args.parallel)) as pool:  # each recipe is its own process
-        for f in [pool.submit(train, n, args.dataset, args.out, args.steps) for n in names]:
+        for f in [pool.submit(train, n, args.dataset, args.out, args.steps, args.device, args.num_workers,
+                              args.raw_env) for n in names]:
             f.result()
 
 

@@ -38,7 +38,10 @@ class LeRobotPolicy:
         cfg.device = "cpu"
         self.policy = get_policy_class(cfg.type).from_pretrained(str(self.path), config=cfg)
         self.policy.eval()
-        self.preprocess, self.postprocess = make_pre_post_processors(cfg, pretrained_path=str(self.path))
+        # as lerobot-eval does: the saved pipeline names the device it was trained on (a GPU-trained
+        # checkpoint says cuda); here it runs on the CPU
+        self.preprocess, self.postprocess = make_pre_post_processors(
+            cfg, pretrained_path=str(self.path), preprocessor_overrides={"device_processor": {"device": "cpu"}})
         self.input_keys = [k for k in cfg.input_features]
         self._torch = torch
 

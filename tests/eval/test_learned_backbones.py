@@ -25,12 +25,24 @@ def test_every_recipe_is_state_only_seeded_and_cpu():
         assert "--policy.device=cpu" in cmd and f"--seed={train_backbones.SEED}" in cmd
         assert "--wandb.enable=false" in cmd and "--policy.push_to_hub=false" in cmd
         assert "image" not in cmd
+        assert '"ENV": "' in cmd  # the object / target xyz are normalised (lerobot leaves type ENV raw)
+        # where it runs is not part of the recipe: only the device and loader flags change
+        gpu = train_backbones.command(name, "ds", "out", device="cuda", num_workers=3)
+        changed = set(gpu) ^ set(train_backbones.command(name, "ds", "out"))
+        assert changed == {"--policy.device=cpu", "--policy.device=cuda", "--num_workers=0", "--num_workers=3"}
+
+
+def test_weak_siblings_are_earlier_checkpoints_of_a_recipe():
+    for weak, (recipe, step) in train_backbones.SIBLINGS.items():
+        steps = train_backbones.RECIPES[recipe][1]
+        assert 0 < step < steps and step % (steps // train_backbones.CHECKPOINTS_PER_RUN) == 0, weak
+        assert train_backbones.checkpoint(weak).parts[-4:] == (recipe, "checkpoints", f"{step:06d}", "pretrained_model")
 
 
 def test_record_train_and_run_a_learned_backbone(tmp_path):
     ds = tmp_path / "ds"
     rec = subprocess.run([sys.executable, str(ROOT / "policies/record_dataset.py"), "--tasks", "0", "--seeds", "10",
-                          "--workers", "1", "--out", str(ds)], capture_output=True, text=True, cwd=ROOT)
+                          "--dart-sigma", "0.1", "--workers", "1", "--out", str(ds)], capture_output=True, text=True, cwd=ROOT)
     assert rec.returncode == 0, rec.stderr[-2000:]
     info = json.loads((ds / "meta" / "info.json").read_text())
     assert info["total_episodes"] == 1 and info["features"]["observation.environment_state"]["shape"] == [6]
@@ -40,7 +52,37 @@ def test_record_train_and_run_a_learned_backbone(tmp_path):
                             "--out", str(tmp_path / "train"), "--steps", "2"], capture_output=True, text=True, cwd=ROOT)
     assert train.returncode == 0, train.stdout[-2000:] + train.stderr[-2000:]
     ckpt = train_backbones.checkpoint("act_chunk", str(tmp_path / "train"))
-    assert json.loads((ckpt / "recipe.json").read_text())["recipe"] == "act_chunk"
+    recipe = json.loads((ckpt / "recipe.json").read_text())
+    assert recipe["recipe"] == "act_chunk" and recipe["steps"] == 2 and "CPU" in recipe["device"]
+
+    # Defect found in #9: lerobot's ACT / Diffusion configs normalise VISUAL, STATE and ACTION only,
+    # so observation.environment_state (type ENV) reached the network raw. The saved preprocessor
+    # must normalise it with the dataset's statistics, as lerobot-train and lerobot-eval apply it.
+    import torch
+
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.policies.factory import make_pre_post_processors
+
+    stats = json.loads((ds / "meta" / "stats.json").read_text())["observation.environment_state"]
+    pre, _ = make_pre_post_processors(PreTrainedConfig.from_pretrained(str(ckpt)), pretrained_path=str(ckpt))
+    env = np.asarray(stats["mean"], np.float32) + np.asarray(stats["std"], np.float32)  # one std above the mean
+    batch = {"observation.state": torch.zeros(1, 8), "observation.environment_state": torch.from_numpy(env)[None],
+             "task": ["t"]}
+    out = pre(batch)["observation.environment_state"][0].numpy()
+    spread = np.asarray(stats["std"]) > 1e-6  # a coordinate constant over one episode (the plate) stays 0 / eps
+    np.testing.assert_allclose(out[spread], 1.0, atol=1e-3)
+
+    # A checkpoint trained on a GPU names cuda in its config and in its saved preprocessor's device
+    # step; the harness (and lerobot-physvla-replay) run it on the CPU, as lerobot-eval does.
+    pre_json = ckpt / "policy_preprocessor.json"
+    pre = json.loads(pre_json.read_text())
+    devices = [s for s in pre["steps"] if s.get("registry_name") == "device_processor"]
+    assert devices, pre["steps"]
+    for s in devices:
+        s["config"]["device"] = "cuda"
+    pre_json.write_text(json.dumps(pre))
+    cfg = json.loads((ckpt / "config.json").read_text())
+    (ckpt / "config.json").write_text(json.dumps({**cfg, "device": "cuda"}))
 
     from backbones import LeRobotBackbone
 
@@ -57,3 +99,40 @@ def test_record_train_and_run_a_learned_backbone(tmp_path):
         actions.append(a)
         scene.step(np.clip(a, -1, 1))
     assert policy.policy.config.n_action_steps == 10  # chunked: the 3 actions come from one chunk
+
+
+def test_recorded_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
+    """The training data and lerobot-eval agree on what the policy sees: a recorded expert episode
+    (init state 0, no DART noise), replayed action by action in `--env.type=libero_physvla
+    --env.cameras=false` through lerobot-eval's observation path (preprocess_observation + the
+    env's preprocessor), gives at every frame the observation lerobot-train reads from the dataset."""
+    ds = tmp_path / "ds"
+    rec = subprocess.run([sys.executable, str(ROOT / "policies/record_dataset.py"), "--tasks", "0", "--seeds", "0",
+                          "--dart-sigma", "0", "--workers", "1", "--out", str(ds)], capture_output=True, text=True,
+                         cwd=ROOT)
+    assert rec.returncode == 0, rec.stderr[-2000:]
+
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    from lerobot.envs.utils import preprocess_observation
+
+    from lerobot_physvla.envs.libero_physvla import LiberoPhysVLAEnvConfig
+
+    data = LeRobotDataset("local/alignment", root=ds)
+    assert data.num_episodes == 1
+    cfg_env = LiberoPhysVLAEnvConfig(task="libero_spatial", task_ids=[0], cameras=False)
+    vec = cfg_env.create_envs(n_envs=1)["libero_spatial"][0]  # its first sub-env starts at init state 0
+    env_pre, _ = cfg_env.get_env_processors()
+    try:
+        obs, _ = vec.reset(seed=[0])
+        success = False
+        for t in range(data.num_frames):
+            seen = env_pre(preprocess_observation(obs))
+            frame = data[t]
+            for key in ("observation.state", "observation.environment_state"):
+                np.testing.assert_allclose(seen[key][0].numpy(), frame[key].numpy(), atol=1e-4,
+                                           err_msg=f"{key} at frame {t}")
+            obs, _, _, _, info = vec.step(frame["action"].numpy()[None].astype(np.float64))
+            success = bool(info["is_success"][0]) if "is_success" in info else success
+        assert success  # the replayed episode ends where the recorded one did: in success
+    finally:
+        vec.close()
