@@ -385,9 +385,10 @@ def learned(args) -> None:
     if missing:
         raise SystemExit(f"experiments: no checkpoint for {missing} under {args.checkpoints}; "
                          "run policies/record_dataset.py then policies/train_backbones.py")
+    modes = [m for m in MODES if m in args.modes.split(",")]
     units = [
         Unit(n, m, PhysVLAConfig(mode=m).to_dict(), t, s, k, policy=str(ckpts[n].resolve()))
-        for n in names for m in MODES for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
+        for n in names for m in modes for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
     ]
     records, secs = run_units(units, out, args.workers, args.backend)
     (out / "recipes").mkdir(exist_ok=True)
@@ -403,8 +404,8 @@ def learned(args) -> None:
                               f"{ds.get('episodes', '?')} episodes, {ds.get('frames', '?')} frames | "
                               f"`{str(r.get('commit', '?'))[:7]}` |")
     agg = aggregate(records)
-    rows = [(n, m) for n in names for m in MODES]
-    pt, flags = per_task_table(records, names, MODES)
+    rows = [(n, m) for n in names for m in modes]
+    pt, flags = per_task_table(records, names, modes)
     plot_success(agg, rows, out / "success_jerk.png", "LIBERO-Spatial, learned backbones x modes")
     lines = header("Learned backbones (LeRobot ACT / Diffusion, state inputs) x modes on LIBERO-Spatial", secs,
                    len(units), about=(
@@ -420,7 +421,7 @@ def learned(args) -> None:
                   "|---|---|---|---|---|---|---|", *provenance, ""]
     import efficacy as ef
 
-    paired = [ef.paired_row(f"{n} / {m}", ef.paired(records, m, n)) for n in names for m in MODES[1:]]
+    paired = [ef.paired_row(f"{n} / {m}", ef.paired(records, m, n)) for n in names for m in modes if m != "baseline"]
     lines += ["## Aggregate over the 10 tasks\n", *summary_table(agg, rows), "",
               "## Paired outcomes against baseline (same backbone, same init state)\n", *ef.PAIRED_HEAD, *paired, "",
               "## Per task (successes / episodes; (+)/(-) = more / fewer than baseline, same backbone and seeds)\n",
@@ -542,6 +543,7 @@ def main() -> None:
     ap.add_argument("--learned", default="act_single,act_single_weak,act_chunk,act_chunk_weak,diffusion_chunk,"
                                          "diffusion_chunk_weak",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
+    ap.add_argument("--modes", default=",".join(MODES), help="learned: which of the four modes")
     ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass", help="efficacy: which stages to run")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
