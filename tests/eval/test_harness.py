@@ -78,3 +78,20 @@ def test_a_unit_on_disk_run_with_another_configuration_is_not_reused(tmp_path):
     off = Unit("x", "off", PRESETS["default"].replace(lowpass_alpha_max=0.8).to_dict())
     (tmp_path / "units" / f"{off.key}.json").write_text(json.dumps({"unit": {"config": off.config, "expert": {}}}))
     _check_stale([Unit("x", "off", PRESETS["default"].to_dict())], tmp_path)
+
+
+def test_a_unit_on_disk_run_with_other_weights_is_not_reused(tmp_path):
+    """A learned backbone retrained under the same name: its old units are refused, not mixed in."""
+    from harness import _check_stale, policy_fingerprint
+
+    ckpt = tmp_path / "ckpt"
+    ckpt.mkdir()
+    (ckpt / "model.safetensors").write_bytes(b"weights v1")
+    unit = Unit("act_chunk", "baseline", PhysVLAConfig(mode="baseline").to_dict(), policy=str(ckpt))
+    (tmp_path / "units").mkdir()
+    (tmp_path / "units" / f"{unit.key}.json").write_text(json.dumps(
+        {"unit": {"config": unit.config, "expert": {}}, "policy_sha256": policy_fingerprint(ckpt)}))
+    _check_stale([unit], tmp_path)  # same weights: reused
+    (ckpt / "model.safetensors").write_bytes(b"weights v2")  # retrained
+    with pytest.raises(SystemExit, match="other weights"):
+        _check_stale([unit], tmp_path)
