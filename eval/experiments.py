@@ -128,6 +128,8 @@ def per_task_table(records, backbones, configs, base="baseline") -> tuple[list[s
     flags = []
     for b in backbones:
         for c in configs:
+            if not any((b, c, t) in agg for t in tasks):  # a mode not run for this backbone
+                continue
             cells = []
             for t in tasks:
                 a = agg.get((b, c, t))
@@ -386,9 +388,11 @@ def learned(args) -> None:
         raise SystemExit(f"experiments: no checkpoint for {missing} under {args.checkpoints}; "
                          "run policies/record_dataset.py then policies/train_backbones.py")
     modes = [m for m in MODES if m in args.modes.split(",")]
+    weak_modes = [m for m in modes if m in (args.weak_modes or args.modes).split(",")]
+    modes_of = {n: weak_modes if n in train_backbones.SIBLINGS else modes for n in names}
     units = [
         Unit(n, m, PhysVLAConfig(mode=m).to_dict(), t, s, k, policy=str(ckpts[n].resolve()))
-        for n in names for m in modes for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
+        for n in names for m in modes_of[n] for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
     ]
     records, secs = run_units(units, out, args.workers, args.backend)
     (out / "recipes").mkdir(exist_ok=True)
@@ -404,7 +408,7 @@ def learned(args) -> None:
                               f"{ds.get('episodes', '?')} episodes, {ds.get('frames', '?')} frames | "
                               f"`{str(r.get('commit', '?'))[:7]}` |")
     agg = aggregate(records)
-    rows = [(n, m) for n in names for m in modes]
+    rows = [(n, m) for n in names for m in modes_of[n]]
     pt, flags = per_task_table(records, names, modes)
     plot_success(agg, rows, out / "success_jerk.png", "LIBERO-Spatial, learned backbones x modes")
     lines = header("Learned backbones (LeRobot ACT / Diffusion, state inputs) x modes on LIBERO-Spatial", secs,
@@ -421,7 +425,8 @@ def learned(args) -> None:
                   "|---|---|---|---|---|---|---|", *provenance, ""]
     import efficacy as ef
 
-    paired = [ef.paired_row(f"{n} / {m}", ef.paired(records, m, n)) for n in names for m in modes if m != "baseline"]
+    paired = [ef.paired_row(f"{n} / {m}", ef.paired(records, m, n)) for n in names for m in modes_of[n]
+              if m != "baseline"]
     lines += ["## Aggregate over the 10 tasks\n", *summary_table(agg, rows), "",
               "## Paired outcomes against baseline (same backbone, same init state)\n", *ef.PAIRED_HEAD, *paired, "",
               "## Per task (successes / episodes; (+)/(-) = more / fewer than baseline, same backbone and seeds)\n",
@@ -544,6 +549,7 @@ def main() -> None:
                                          "diffusion_chunk_weak",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
     ap.add_argument("--modes", default=",".join(MODES), help="learned: which of the four modes")
+    ap.add_argument("--weak-modes", default=None, help="learned: modes for the weak siblings (default: --modes)")
     ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass", help="efficacy: which stages to run")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
