@@ -57,7 +57,8 @@ def success_table(name: str, title: str) -> list[str]:
              "mean end-effector jerk (m/s^3)\n", "| backbone | " + " | ".join(modes) + " |",
              "|---|" + "---|" * len(modes)]
     for b in backbones:
-        lines.append(f"| {b} | " + " | ".join(f"{_rate(g[(b, m)])}; {_jerk(g[(b, m)]):.1f}" for m in modes) + " |")
+        lines.append(f"| {b} | " + " | ".join(f"{_rate(g[(b, m)])}; {_jerk(g[(b, m)]):.1f}" if (b, m) in g else "not run"
+                                              for m in modes) + " |")
     return lines + [""]
 
 
