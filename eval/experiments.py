@@ -376,17 +376,28 @@ def lift_plate(args) -> None:
     write(out, lines, records)
 
 
-def learned(args) -> None:
+def _train_backbones():
+    """policies/train_backbones.py (the recipes, their checkpoints and weak siblings)."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "policies"))
     import train_backbones
 
-    out = RESULTS / "learned"
-    names = [n for n in args.learned.split(",")]
-    ckpts = {n: train_backbones.checkpoint(n, args.checkpoints) for n in names}
+    return train_backbones
+
+
+def _checkpoints(names: list[str], root: str, fix: str) -> dict[str, Path]:
+    """Each learned backbone's checkpoint directory; one clear error naming the missing ones."""
+    ckpts = {n: _train_backbones().checkpoint(n, root) for n in names}
     missing = [n for n, c in ckpts.items() if not (c / "model.safetensors").exists()]
     if missing:
-        raise SystemExit(f"experiments: no checkpoint for {missing} under {args.checkpoints}; "
-                         "run policies/record_dataset.py then policies/train_backbones.py")
+        raise SystemExit(f"experiments: no checkpoint for {missing} under {root}; {fix}")
+    return ckpts
+
+
+def learned(args) -> None:
+    train_backbones = _train_backbones()
+    out = RESULTS / "learned"
+    names = [n for n in args.learned.split(",")]
+    ckpts = _checkpoints(names, args.checkpoints, "run policies/record_dataset.py then policies/train_backbones.py")
     modes = [m for m in MODES if m in args.modes.split(",")]
     weak_modes = [m for m in modes if m in (args.weak_modes or args.modes).split(",")]
     modes_of = {n: weak_modes if n in train_backbones.SIBLINGS else modes for n in names}
@@ -438,20 +449,15 @@ def learned(args) -> None:
 def learned_fixes(args) -> None:
     """Each defect of the learned backbones measured alone: the same recipe, data, steps and seed
     trained with the defect and without it; uncorrected success on the same init states, paired."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "policies"))
     import efficacy as ef
-    import train_backbones
 
     out = RESULTS / "learned_fixes"
     out.mkdir(parents=True, exist_ok=True)
     fixed = args.fixes.split(",")
-    defects = {n: n + train_backbones.RAW_ENV for n in fixed}  # observation.environment_state left raw
+    defects = {n: n + _train_backbones().RAW_ENV for n in fixed}  # observation.environment_state left raw
     names = [*fixed, *defects.values()]
-    ckpts = {n: train_backbones.checkpoint(n, args.checkpoints) for n in names}
-    missing = [n for n, c in ckpts.items() if not (c / "model.safetensors").exists()]
-    if missing:
-        raise SystemExit(f"experiments: no checkpoint for {missing} under {args.checkpoints}; train them with "
-                         "policies/train_backbones.py NAME (and --raw-env for the defect)")
+    ckpts = _checkpoints(names, args.checkpoints,
+                         "train them with policies/train_backbones.py NAME (and --raw-env for the defect)")
     units = [Unit(n, "baseline", PhysVLAConfig(mode="baseline").to_dict(), t, s, k, policy=str(ckpts[n].resolve()))
              for n in names for t in range(10) for s, k in seed_blocks(args.per_task, args.block)]
     # the units are the learned experiment's (same key, same weights): shared, run once

@@ -14,6 +14,7 @@ driver, which writes them, so workers need lerobot_physvla installed but no shar
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -158,8 +159,16 @@ def compute_unit(unit: Unit) -> dict:
 
 
 def policy_fingerprint(path: str | Path) -> str:
-    """sha256 of a checkpoint's weights (model.safetensors): which trained policy a unit ran."""
-    return hashlib.sha256((Path(path) / "model.safetensors").read_bytes()).hexdigest()
+    """sha256 of a checkpoint's weights (model.safetensors): which trained policy a unit ran.
+    Hashed once per file version (a sweep checks every unit of a backbone against it)."""
+    f = Path(path) / "model.safetensors"
+    st = f.stat()
+    return _sha256(str(f.resolve()), st.st_size, st.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=64)
+def _sha256(path: str, size: int, mtime_ns: int) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def _write(out_dir: str | Path, key: str, payload: dict) -> None:
