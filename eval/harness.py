@@ -14,7 +14,6 @@ driver, which writes them, so workers need lerobot_physvla installed but no shar
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
 import os
@@ -163,12 +162,15 @@ def policy_fingerprint(path: str | Path) -> str:
     Hashed once per file version (a sweep checks every unit of a backbone against it)."""
     f = Path(path) / "model.safetensors"
     st = f.stat()
-    return _sha256(str(f.resolve()), st.st_size, st.st_mtime_ns)
+    key = (str(f.resolve()), st.st_size, st.st_mtime_ns)
+    if key not in _SHA256:
+        _SHA256[key] = hashlib.sha256(f.read_bytes()).hexdigest()
+    return _SHA256[key]
 
 
-@functools.lru_cache(maxsize=64)
-def _sha256(path: str, size: int, mtime_ns: int) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+# a plain dict, not functools.lru_cache: Ray ships this module to its workers by value, and an
+# lru_cache wrapper is pickled by reference to a module (`harness`) the workers cannot import
+_SHA256: dict[tuple[str, int, int], str] = {}
 
 
 def _write(out_dir: str | Path, key: str, payload: dict) -> None:
