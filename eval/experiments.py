@@ -55,7 +55,7 @@ from backbones import BACKBONES  # noqa: E402
 from harness import BACKENDS, Unit, seed_blocks  # noqa: E402
 
 from lerobot_physvla import metrics  # noqa: E402
-from lerobot_physvla.core.config import PhysVLAConfig  # noqa: E402
+from lerobot_physvla.core.config import PRESETS, PhysVLAConfig  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 MODES = ("baseline", "temporal", "phys", "phys_el")
@@ -400,9 +400,14 @@ def learned(args) -> None:
     ckpts = _checkpoints(names, args.checkpoints, "run policies/record_dataset.py then policies/train_backbones.py")
     modes = [m for m in MODES if m in args.modes.split(",")]
     weak_modes = [m for m in modes if m in (args.weak_modes or args.modes).split(",")]
-    modes_of = {n: weak_modes if n in train_backbones.SIBLINGS else modes for n in names}
+    presets = [p for p in args.presets.split(",") if p]  # the shipped default beside the paper's modes
+    unknown = [p for p in presets if p not in PRESETS]
+    if unknown:
+        raise SystemExit(f"experiments: unknown preset(s) {unknown}; choose from {', '.join(PRESETS)}")
+    configs = {**{m: PhysVLAConfig(mode=m) for m in modes}, **{p: PRESETS[p] for p in presets}}
+    modes_of = {n: [*(weak_modes if n in train_backbones.SIBLINGS else modes), *presets] for n in names}
     units = [
-        Unit(n, m, PhysVLAConfig(mode=m).to_dict(), t, s, k, policy=str(ckpts[n].resolve()))
+        Unit(n, m, configs[m].to_dict(), t, s, k, policy=str(ckpts[n].resolve()))
         for n in names for m in modes_of[n] for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
     ]
     records, secs = run_units(units, out, args.workers, args.backend)
@@ -420,7 +425,7 @@ def learned(args) -> None:
                               f"`{str(r.get('commit', '?'))[:7]}` |")
     agg = aggregate(records)
     rows = [(n, m) for n in names for m in modes_of[n]]
-    pt, flags = per_task_table(records, names, modes)
+    pt, flags = per_task_table(records, names, list(configs))
     plot_success(agg, rows, out / "success_jerk.png", "LIBERO-Spatial, learned backbones x modes")
     lines = header("Learned backbones (LeRobot ACT / Diffusion, state inputs) x modes on LIBERO-Spatial", secs,
                    len(units), about=(
@@ -477,6 +482,48 @@ def learned_fixes(args) -> None:
                           "per-task - 1 of the 10 tasks. `baseline` = with the defect, `this` = without."))
     lines += ["| recipe | pairs | baseline | this | paired difference [95 % CI] | won / lost / both / neither | "
               "jerk / baseline's | tasks that lost |", "|---|---|---|---|---|---|---|---|", *rows]
+    write(out, lines, records)
+
+
+def learned_checkpoints(args) -> None:
+    """Uncorrected success of chosen checkpoints on one block of init states (default 5-9, which the
+    learned table does not use): how a recipe's success grows with its steps, and whether a run of
+    the same recipe on this CPU matches the GPU run the learned table uses. `--ckpts` entries are
+    `<run>@<step>`: `<run>` a recipe's directory under --checkpoints, `<recipe>_cpu` the same recipe
+    trained here by `train_backbones.py <recipe> --steps N --out <checkpoints>/cpu`."""
+    cands: dict[str, Path] = {}
+    for entry in args.ckpts.split(","):
+        run, _, step = entry.partition("@")
+        if not step.isdigit():
+            raise SystemExit(f"experiments: --ckpts entry {entry!r} is not <run>@<step>")
+        d = Path(args.checkpoints) / ("cpu/" + run.removesuffix("_cpu") if run.endswith("_cpu") else run)
+        c = d / "checkpoints" / f"{int(step):06d}" / "pretrained_model"
+        if not (c / "model.safetensors").exists():
+            raise SystemExit(f"experiments: no checkpoint {c}; train it with policies/train_backbones.py")
+        cands[f"{run}@{int(step):06d}"] = c
+    first = args.first_seed
+    units = [Unit(n, "baseline", PhysVLAConfig(mode="baseline").to_dict(), t, first, args.per_task,
+                  policy=str(c.resolve())) for n, c in cands.items() for t in range(10)]
+    out = RESULTS / "learned_checkpoints"
+    records, secs = run_units(units, out, args.workers, args.backend)
+    agg = aggregate(records)
+    rows = []
+    for n, c in cands.items():
+        a = agg[(n, "baseline")]
+        r = json.loads((c / "recipe.json").read_text()) if (c / "recipe.json").exists() else {}
+        where = "GPU" if "cuda" in r.get("device", "") else "CPU"
+        rows.append(f"| {n.split('@')[0].removesuffix('_cpu')} | {where}: {r.get('device', '?')} | {r.get('steps', '?')} | "
+                    f"{int(n.split('@')[1])} | {a['successes']} / {a['n']} | {100 * a['success']:.0f}% "
+                    f"[{100 * a['ci'][0]:.0f}, {100 * a['ci'][1]:.0f}] | {a['mean_jerk']:.1f} |")
+    lines = header(f"Learned checkpoints, uncorrected, on init states {first}-{first + args.per_task - 1}", secs,
+                   len(units), about=(
+                       "Each row: one checkpoint of a policies/train_backbones.py recipe (lerobot-train command, seed "
+                       "and device in its recipe.json), evaluated uncorrected on LIBERO-Spatial init states "
+                       f"{first}-{first + args.per_task - 1} of the 10 tasks (n = {10 * args.per_task}). The GPU runs are "
+                       "the ones eval/results/learned uses (their step-4000 / 2400 checkpoints are the weak siblings); "
+                       "the CPU runs are the same recipes and seed run on this machine for fewer steps."))
+    lines += ["| recipe | trained on | steps of the run | checkpoint (step) | successes | success [95 % Wilson] | "
+              "mean jerk (m/s^3) |", "|---|---|---|---|---|---|---|", *rows]
     write(out, lines, records)
 
 
@@ -551,11 +598,17 @@ def main() -> None:
                     help="learned_fixes: recipes trained as shipped and with --raw-env")
     # diffusion_single is left out by default: 10 denoising passes per control step make it ~10x
     # slower to evaluate on this CPU than the others
-    ap.add_argument("--learned", default="act_single,act_single_weak,act_chunk,act_chunk_weak,diffusion_chunk,"
-                                         "diffusion_chunk_weak",
+    ap.add_argument("--learned", default="act_single,act_single_weak,act_chunk,act_chunk_weak,diffusion_chunk",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
     ap.add_argument("--modes", default=",".join(MODES), help="learned: which of the four modes")
+    ap.add_argument("--ckpts", default="act_single@4000,act_single_cpu@4800,act_single_cpu@6400,act_single_cpu@8000,"
+                                       "act_chunk@2400,act_chunk_cpu@2400,act_chunk_cpu@3600,act_chunk_cpu@4800,"
+                                       "act_chunk_cpu@6000",
+                    help="learned_checkpoints: <run>@<step> entries (<recipe>_cpu: the run under <checkpoints>/cpu)")
+    ap.add_argument("--first-seed", type=int, default=5, help="learned_checkpoints: first init state of the block")
     ap.add_argument("--weak-modes", default=None, help="learned: modes for the weak siblings (default: --modes)")
+    ap.add_argument("--presets", default="default",
+                    help="learned: presets run beside the modes (core.config.PRESETS; '' for none)")
     ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass", help="efficacy: which stages to run")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
@@ -565,7 +618,7 @@ def main() -> None:
 
 EXPERIMENTS = {"table2": table2, "ablation": ablation, "place_bias": place_bias, "lift_sweep": lift_sweep,
                "lift_plate": lift_plate, "fetch_sweep": fetch_sweep, "learned": learned,
-               "learned_fixes": learned_fixes, "efficacy": efficacy}
+               "learned_fixes": learned_fixes, "learned_checkpoints": learned_checkpoints, "efficacy": efficacy}
 
 if __name__ == "__main__":
     main()

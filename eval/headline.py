@@ -21,7 +21,7 @@ from lerobot_physvla import metrics
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "eval" / "results"
 START, END = "<!-- headline:start -->", "<!-- headline:end -->"
-MODES = ("baseline", "temporal", "phys", "phys_el")
+MODES = ("baseline", "temporal", "phys", "phys_el", "default")
 
 
 def _records(name: str) -> list[dict] | None:

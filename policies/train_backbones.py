@@ -72,11 +72,11 @@ RECIPES: dict[str, tuple[list[str], int]] = {
 }
 
 # weak sibling -> (recipe, training step of the earlier checkpoint it is): the first checkpoint of
-# each run (a fifth of its steps), fixed before any of them was evaluated
+# each run (a fifth of its steps), fixed before any of them was evaluated. Diffusion's first
+# checkpoint (step 2000) succeeded 0 / 50 and is no sibling: no corrector can be judged on it.
 SIBLINGS: dict[str, tuple[str, int]] = {
     "act_single_weak": ("act_single", 4000),
     "act_chunk_weak": ("act_chunk", 2400),
-    "diffusion_chunk_weak": ("diffusion_chunk", 2000),
 }
 
 
