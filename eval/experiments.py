@@ -42,6 +42,7 @@ import argparse
 import json
 import os
 import platform
+import shlex
 import sys
 import time
 from collections import defaultdict
@@ -99,7 +100,7 @@ def header(title: str, seconds: float, n_units: int, sim: str = "LIBERO", about:
                       "LIBERO's own check; rates with 95 % Wilson intervals.")
     return [
         f"# {title}\n",
-        f"Command: `.venv/bin/python {' '.join(sys.argv)}`  ",
+        f"Command: `.venv/bin/python {shlex.join(sys.argv)}`  ",
         f"Ran on: {platform.machine()}, {os.cpu_count()} cores, no GPU; {sim} state-only (no cameras); "
         f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; this invocation took {seconds / 60:.1f} min "
         f"for {n_units} units (units already on disk are not re-run); the units' own compute time, summed over "
@@ -485,18 +486,24 @@ def learned_fixes(args) -> None:
     write(out, lines, records)
 
 
+# the recipes' runs on this CPU: <recipe><suffix>@<step> names a checkpoint under <checkpoints>/<dir>
+CPU_RUNS = {"_cpu": "cpu",  # train_backbones.py act_single --steps 8000 (act_chunk: 6000) --out outputs/train/cpu
+            "_cpufull": "cpu_full"}  # train_backbones.py act_single --out outputs/train/cpu_full (all 20000 steps)
+
+
 def learned_checkpoints(args) -> None:
     """Uncorrected success of chosen checkpoints on one block of init states (default 5-9, which the
     learned table does not use): how a recipe's success grows with its steps, and whether a run of
     the same recipe on this CPU matches the GPU run the learned table uses. `--ckpts` entries are
-    `<run>@<step>`: `<run>` a recipe's directory under --checkpoints, `<recipe>_cpu` the same recipe
-    trained here by `train_backbones.py <recipe> --steps N --out <checkpoints>/cpu`."""
+    `<run>@<step>`: `<run>` a recipe's directory under --checkpoints, or a run of it on this CPU
+    (CPU_RUNS)."""
     cands: dict[str, Path] = {}
     for entry in args.ckpts.split(","):
         run, _, step = entry.partition("@")
         if not step.isdigit():
             raise SystemExit(f"experiments: --ckpts entry {entry!r} is not <run>@<step>")
-        d = Path(args.checkpoints) / ("cpu/" + run.removesuffix("_cpu") if run.endswith("_cpu") else run)
+        here = next((sub for suffix, sub in CPU_RUNS.items() if run.endswith(suffix)), None)
+        d = Path(args.checkpoints) / (f"{here}/{run.rsplit('_', 1)[0]}" if here else run)
         c = d / "checkpoints" / f"{int(step):06d}" / "pretrained_model"
         if not (c / "model.safetensors").exists():
             raise SystemExit(f"experiments: no checkpoint {c}; train it with policies/train_backbones.py")
@@ -512,7 +519,7 @@ def learned_checkpoints(args) -> None:
         a = agg[(n, "baseline")]
         r = json.loads((c / "recipe.json").read_text()) if (c / "recipe.json").exists() else {}
         where = "GPU" if "cuda" in r.get("device", "") else "CPU"
-        rows.append(f"| {n.split('@')[0].removesuffix('_cpu')} | {where}: {r.get('device', '?')} | {r.get('steps', '?')} | "
+        rows.append(f"| {r.get('recipe', n.split('@')[0]).removesuffix('_weak')} | {where}: {r.get('device', '?')} | {r.get('steps', '?')} | "
                     f"{int(n.split('@')[1])} | {a['successes']} / {a['n']} | {100 * a['success']:.0f}% "
                     f"[{100 * a['ci'][0]:.0f}, {100 * a['ci'][1]:.0f}] | {a['mean_jerk']:.1f} |")
     lines = header(f"Learned checkpoints, uncorrected, on init states {first}-{first + args.per_task - 1}", secs,
@@ -521,9 +528,20 @@ def learned_checkpoints(args) -> None:
                        "and device in its recipe.json), evaluated uncorrected on LIBERO-Spatial init states "
                        f"{first}-{first + args.per_task - 1} of the 10 tasks (n = {10 * args.per_task}). The GPU runs are "
                        "the ones eval/results/learned uses (their step-4000 / 2400 checkpoints are the weak siblings); "
-                       "the CPU runs are the same recipes and seed run on this machine for fewer steps."))
+                       "the CPU runs are the same recipes, data and seed run on this machine (`--policy.device=cpu`): "
+                       "act_single for 8000 and for all 20000 steps, act_chunk for 6000. On the CPU a run is "
+                       "deterministic (see below); the GPU run of the same recipe and seed follows other numerics."))
     lines += ["| recipe | trained on | steps of the run | checkpoint (step) | successes | success [95 % Wilson] | "
-              "mean jerk (m/s^3) |", "|---|---|---|---|---|---|---|", *rows]
+              "mean jerk (m/s^3) |", "|---|---|---|---|---|---|---|", *rows, ""]
+    # the same step of two runs of one recipe: equal weights = the run (and an early stop) is reproducible
+    same = []
+    for a in Path(args.checkpoints).glob("*/*/checkpoints/[0-9]*/pretrained_model/model.safetensors"):
+        for b in Path(args.checkpoints).glob(f"*/{a.parts[-5]}/checkpoints/{a.parts[-3]}/pretrained_model/model.safetensors"):
+            if a.parts[-6] < b.parts[-6]:
+                eq = harness.policy_fingerprint(a.parent) == harness.policy_fingerprint(b.parent)
+                same.append(f"- {a.parts[-5]} step {int(a.parts[-3])}: the `{a.parts[-6]}` and `{b.parts[-6]}` runs "
+                            f"(same recipe, data, seed; CPU) hold {'identical' if eq else 'different'} weights (sha256)")
+    lines += ["Reproducibility of the CPU runs:", "", *(same or ["- no two CPU runs share a checkpoint step"])]
     write(out, lines, records)
 
 
@@ -603,8 +621,8 @@ def main() -> None:
     ap.add_argument("--modes", default=",".join(MODES), help="learned: which of the four modes")
     ap.add_argument("--ckpts", default="act_single@4000,act_single_cpu@4800,act_single_cpu@6400,act_single_cpu@8000,"
                                        "act_chunk@2400,act_chunk_cpu@2400,act_chunk_cpu@3600,act_chunk_cpu@4800,"
-                                       "act_chunk_cpu@6000",
-                    help="learned_checkpoints: <run>@<step> entries (<recipe>_cpu: the run under <checkpoints>/cpu)")
+                                       "act_chunk_cpu@6000,act_single@20000,act_single_cpufull@20000",
+                    help="learned_checkpoints: <run>@<step> entries (<recipe>_cpu / _cpufull: its runs on this CPU, CPU_RUNS)")
     ap.add_argument("--first-seed", type=int, default=5, help="learned_checkpoints: first init state of the block")
     ap.add_argument("--weak-modes", default=None, help="learned: modes for the weak siblings (default: --modes)")
     ap.add_argument("--presets", default="default",
