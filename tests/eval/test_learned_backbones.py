@@ -54,6 +54,14 @@ def test_record_train_and_run_a_learned_backbone(tmp_path):
     ckpt = train_backbones.checkpoint("act_chunk", str(tmp_path / "train"))
     recipe = json.loads((ckpt / "recipe.json").read_text())
     assert recipe["recipe"] == "act_chunk" and recipe["steps"] == 2 and "CPU" in recipe["device"]
+    assert "--num_workers=1" in recipe["command"]  # the CPU default: batches read beside the update
+    # data-loader workers change how fast a recipe trains, not what it learns
+    again = subprocess.run([sys.executable, str(ROOT / "policies/train_backbones.py"), "act_chunk", "--dataset", str(ds),
+                            "--out", str(tmp_path / "train0"), "--steps", "2", "--num-workers", "0"],
+                           capture_output=True, text=True, cwd=ROOT)
+    assert again.returncode == 0, again.stderr[-2000:]
+    same = train_backbones.checkpoint("act_chunk", str(tmp_path / "train0")) / "model.safetensors"
+    assert same.read_bytes() == (ckpt / "model.safetensors").read_bytes()
 
     # Defect found in #9: lerobot's ACT / Diffusion configs normalise VISUAL, STATE and ACTION only,
     # so observation.environment_state (type ENV) reached the network raw. The saved preprocessor
