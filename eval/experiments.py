@@ -519,8 +519,8 @@ def learned_checkpoints(args) -> None:
         a = agg[(n, "baseline")]
         r = json.loads((c / "recipe.json").read_text()) if (c / "recipe.json").exists() else {}
         where = "GPU" if "cuda" in r.get("device", "") else "CPU"
-        rows.append(f"| {r.get('recipe', n.split('@')[0]).removesuffix('_weak')} | {where}: {r.get('device', '?')} | {r.get('steps', '?')} | "
-                    f"{int(n.split('@')[1])} | {a['successes']} / {a['n']} | {100 * a['success']:.0f}% "
+        recipe = r.get("recipe", n.split("@")[0]).removesuffix("_weak")
+        rows.append(f"| {recipe} | {where}: {r.get('device', '?')} | {r.get('steps', '?')} | {int(n.split('@')[1])} | {a['successes']} / {a['n']} | {100 * a['success']:.0f}% "
                     f"[{100 * a['ci'][0]:.0f}, {100 * a['ci'][1]:.0f}] | {a['mean_jerk']:.1f} |")
     lines = header(f"Learned checkpoints, uncorrected, on init states {first}-{first + args.per_task - 1}", secs,
                    len(units), about=(
@@ -534,13 +534,12 @@ def learned_checkpoints(args) -> None:
     lines += ["| recipe | trained on | steps of the run | checkpoint (step) | successes | success [95 % Wilson] | "
               "mean jerk (m/s^3) |", "|---|---|---|---|---|---|---|", *rows, ""]
     # the same step of two runs of one recipe: equal weights = the run (and an early stop) is reproducible
-    same = []
-    for a in Path(args.checkpoints).glob("*/*/checkpoints/[0-9]*/pretrained_model/model.safetensors"):
-        for b in Path(args.checkpoints).glob(f"*/{a.parts[-5]}/checkpoints/{a.parts[-3]}/pretrained_model/model.safetensors"):
-            if a.parts[-6] < b.parts[-6]:
-                eq = harness.policy_fingerprint(a.parent) == harness.policy_fingerprint(b.parent)
-                same.append(f"- {a.parts[-5]} step {int(a.parts[-3])}: the `{a.parts[-6]}` and `{b.parts[-6]}` runs "
-                            f"(same recipe, data, seed; CPU) hold {'identical' if eq else 'different'} weights (sha256)")
+    runs_of = defaultdict(list)  # (recipe, step) -> the CPU runs (<checkpoints>/<dir>/<recipe>) that saved it
+    for w in sorted(Path(args.checkpoints).glob("*/*/checkpoints/[0-9]*/pretrained_model/model.safetensors")):
+        runs_of[(w.parts[-5], int(w.parts[-3]))].append(w.parent)
+    same = [f"- {recipe} step {step}: the `{a.parts[-5]}` and `{b.parts[-5]}` runs (same recipe, data, seed; CPU) hold "
+            f"{'identical' if harness.policy_fingerprint(a) == harness.policy_fingerprint(b) else 'different'} "
+            "weights (sha256)" for (recipe, step), (a, *rest) in runs_of.items() for b in rest]
     lines += ["Reproducibility of the CPU runs:", "", *(same or ["- no two CPU runs share a checkpoint step"])]
     write(out, lines, records)
 

@@ -14,8 +14,9 @@ CPU and on a GPU. On the CPU a run is deterministic and the loader workers do no
 weights (tested); a GPU follows other numerics, so its run of a recipe is another draw: act_single
 trained on the H100 succeeds 68 % on init states 5-9, trained here 46 %
 (eval/results/learned_checkpoints). On this CPU a recipe trains in 29-42 min with the default one
-loader worker (eval/results/bench_training), one recipe at a time. The checkpoints land in outputs/train/<recipe>/checkpoints/<step>/pretrained_model
-(every fifth of the steps; `last` is the final one), which eval/experiments.py learned uses (or
+loader worker (eval/results/bench_training), one recipe at a time. The checkpoints land in
+outputs/train/<recipe>/checkpoints/<step>/pretrained_model (every fifth of the steps; `last` is
+the final one), which eval/experiments.py learned uses (or
 `lerobot-eval --policy.path=... --env.type=libero_physvla --env.cameras=false`).
 
     act_single        ACT, chunk 1 (a single-step policy)
