@@ -47,6 +47,15 @@ CANDIDATE_1 = "default + low-pass (candidate 1)"
 # gripper on a grasp that would have held. Its units ran under the name "default" and were renamed.
 DEFAULT_V1 = "default v1"
 DEFAULT_LP = "default + low-pass"
+CANDIDATE_3 = "default, redirect_tol=0.015"
+# the second shipped default (v1 + the veto's reach), confirmed on init states 15-19; on the learned
+# single-step ACT its place redirection, which steered the held object onto the target's exact
+# centre for the whole place phase, cost 30 pp (section 7). Its units ran as "default", renamed.
+DEFAULT_V2 = "default v2"
+V2 = PRESETS["default"].replace(place_rule="redirect", redirect_tol_m=0.0)
+# candidate 4, the shipped default (v2 with the release veto in place of the redirection). Its units
+# first ran as "default, release_veto=0.02" and were renamed when it shipped.
+CANDIDATE_4 = "default"
 
 # Each correction alone (the others' authority 0), phys mode.
 ALONE = {
@@ -76,19 +85,29 @@ TARGETS = {
 # The configurations compared on the design and confirmation blocks.
 COMPARED = {
     "baseline": PhysVLAConfig(mode="baseline"),
-    "default": PRESETS["default"],
-    DEFAULT_LP: PRESETS["default"].replace(lowpass="adaptive", lowpass_alpha_max=0.6),
-    DEFAULT_V1: PRESETS["default"].replace(veto_reach_m=0.0),
+    DEFAULT_V2: V2,
+    DEFAULT_LP: V2.replace(lowpass="adaptive", lowpass_alpha_max=0.6),
+    DEFAULT_V1: V2.replace(veto_reach_m=0.0),
     # the first candidate default: confirmed on init states 5-9, where it cost the jitter expert
     # 16 pp; its units ran under the name "default" and were renamed when the default changed
-    CANDIDATE_1: PRESETS["default"].replace(veto_reach_m=0.0, lowpass="adaptive", lowpass_alpha_max=0.6),
+    CANDIDATE_1: V2.replace(veto_reach_m=0.0, lowpass="adaptive", lowpass_alpha_max=0.6),
+    # the place redirection with a tolerance (candidate 3): within 0.015 m of the target's centre the
+    # policy keeps its own x, y. Chosen on the design block: the learned ACT releases 0.009-0.012 m
+    # off the centre when it succeeds, and the place-bias experts fail from 0.02 m of bias on
+    CANDIDATE_3: V2.replace(redirect_tol_m=0.015),
+    # candidate 4: no steering until the policy releases; a release with the object's centre more
+    # than 0.02 m off the target's is held back and the object steered to within 0.02 m. Chosen on
+    # the design block after candidate 3 still held the weak siblings in place (their release point
+    # lies beyond 0.015 m): the place-bias experts succeed 70-75 % below 0.02 m of bias, 10-40 %
+    # from 0.02 to 0.03 m and never beyond
+    CANDIDATE_4: PRESETS["default"],
     "temporal": PhysVLAConfig(mode="temporal"),
     "paper (eq. 2, c=0.05)": PRESETS["paper"],
     "paper Alg. 1 (c=1)": PRESETS["paper_alg1"],
 }
 # on the design block only the candidates run: temporal and the main-text reading on these seeds
 # are eval/results/table2 (same seeds, same code path)
-DESIGN = {name: COMPARED[name] for name in ("baseline", CANDIDATE_1, "default", DEFAULT_LP)}
+DESIGN = {name: COMPARED[name] for name in ("baseline", CANDIDATE_1, DEFAULT_V2, DEFAULT_LP)}
 CONFIRM = {name: COMPARED[name] for name in ("baseline", CANDIDATE_1)}
 # the shipped default (candidate 1 without the low-pass), confirmed again on a block nobody had
 # looked at: init states 10-14 (used to record the learned backbones' demonstrations, never to
@@ -98,10 +117,26 @@ CONFIRM2 = {name: COMPARED[name] for name in ("baseline", DEFAULT_V1)}
 # the default with the veto's reach (chosen on the design block 0-4 after 10-14 showed the veto's
 # cost), confirmed on init states 15-19, a block no decision looked at
 CONFIRM3_SEEDS = range(15, 20)
-CONFIRM3 = {name: COMPARED[name] for name in ("baseline", "default")}
+CONFIRM3 = {name: COMPARED[name] for name in ("baseline", DEFAULT_V2)}
 # the jitter expert's loss under default v1, taken apart on the design block: which rule costs it
 DIAGNOSIS = ("full veto + height", "place redirect", "full veto + height + reach")
-LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, "default")
+# the shipped default cost the learned single-step ACT 30 pp (eval/results/learned): its rules one
+# by one on the learned backbones, design block 0-4 (stage `learned`)
+LEARNED_ALONE = ("full veto + height + reach", "place redirect")
+LEARNED_SCREENED = ("act_single",)  # the backbone the default cost most: its rules one by one
+LEARNED_CANDIDATES = (CANDIDATE_3, CANDIDATE_4)
+# on the learned confirmation block 5-9 (config -> backbones it ran on): candidate 3 on act_single
+# only (its design-block cost on the weak siblings had already ruled it out). Candidate 4 (the
+# shipped default) is not confirmed there yet: add it as CANDIDATE_4: None (every backbone)
+LEARNED_CONFIRM = {"baseline": ("act_single",), CANDIDATE_3: ("act_single",)}
+# candidate 3 on the design block (its baselines are the design stage's) and on a fifth block no
+# decision looked at: init states 20-24 for the experts, 5-9 for the learned backbones (their
+# demonstrations came from 10-39)
+DESIGN3 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_3, CANDIDATE_4)}
+CONFIRM4_SEEDS = range(20, 25)
+CONFIRM4 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_4)}
+# the shipped default (candidate 4) has not run on Lift / Fetch yet: its rows are v2's
+LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2)
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 LIFT_DESIGN, LIFT_CONFIRM = 7, 100  # first seeds of the Lift / Fetch blocks (20 trials each)
@@ -179,7 +214,8 @@ def _plot(records, path) -> None:
     fig, axes = plt.subplots(1, len(BACKBONES), figsize=(4.2 * len(BACKBONES), 3.8), sharey=True)
     for ax, b in zip(axes, BACKBONES):
         for seeds, marker, label in ((DESIGN_SEEDS, "o", "design 0-4"), (CONFIRM_SEEDS, "s", "confirm 5-9"),
-                                     (CONFIRM2_SEEDS, "^", "confirm 10-14"), (CONFIRM3_SEEDS, "D", "confirm 15-19")):
+                                     (CONFIRM2_SEEDS, "^", "confirm 10-14"), (CONFIRM3_SEEDS, "D", "confirm 15-19"),
+                                     (CONFIRM4_SEEDS, "v", "confirm 20-24")):
             recs = [r for r in _block(records, seeds) if r["backbone"] == b]
             for j, c in enumerate(COMPARED):
                 sel = [r for r in recs if r["config"] == c]
@@ -197,7 +233,7 @@ def _plot(records, path) -> None:
     plt.close(fig)
 
 
-def report(out, records, secs, n_units, header, write) -> None:
+def report(out, records, secs, n_units, header, write, learned=()) -> None:
     """eval/results/efficacy/README.md: the screen, both blocks paired against baseline, Lift/Fetch."""
     lines = header("Efficacy: per-correction ablation, the shipped default vs baseline, temporal and the paper's "
                    "two readings", secs, n_units, "LIBERO-Spatial, robosuite Lift and Fetch", about=(
@@ -241,7 +277,11 @@ def report(out, records, secs, n_units, header, write) -> None:
                           CONFIRM2_SEEDS),
                          ("3c. Third confirmation block (init states 15-19, n = 50 per cell): the shipped default "
                           "(v1 + the veto's reach), chosen on the design block after 10-14 showed v1's cost; no "
-                          "decision looked at this block", CONFIRM3_SEEDS)):
+                          "decision looked at this block", CONFIRM3_SEEDS),
+                         ("3d. Fourth confirmation block (init states 20-24, n = 50 per cell): candidate 3, the "
+                          "place redirection with a tolerance, chosen on the design block after the learned "
+                          "backbones showed the redirection's cost (section 7); no decision looked at this block",
+                          CONFIRM4_SEEDS)):
         recs = _block(records, seeds)
         if not any(r["config"] != "baseline" for r in recs):
             continue
@@ -284,6 +324,20 @@ def report(out, records, secs, n_units, header, write) -> None:
                     j = [float(np.mean([r["mean_jerk"] for r in cell])) for cell in cells]
                     k = [f"{sum(r['success'] for r in cell)}/{len(cell)}" for cell in cells]
                     lines.append(f"| {sim} | {c} | {k[0]} | {k[1]} | {j[0]:.2f} | {j[1]:.2f} | {(j[1] - j[0]) / j[0]:+.0%} |")
+    for title, seeds in (("7. Learned backbones: the default, its rules one by one and candidate 3 (design block, "
+                          "init states 0-4, n = 50 per cell)", DESIGN_SEEDS),
+                         ("7b. Learned backbones, confirmation block (init states 5-9, n = 50 per cell; no corrector "
+                          "decision looked at it)", CONFIRM_SEEDS)):
+        recs = [r for r in learned if r["seed"] in seeds]
+        if not any(r["config"] != "baseline" for r in recs):
+            continue
+        lines += ["", f"## {title}\n",
+                  "The LeRobot backbones of eval/results/learned (same units, same weights).\n", *PAIRED_HEAD]
+        for b in dict.fromkeys(r["backbone"] for r in recs):
+            for c in dict.fromkeys(r["config"] for r in recs if r["backbone"] == b):
+                p = paired(recs, c, b) if c != "baseline" else None
+                if p and p["n"]:
+                    lines.append(paired_row(f"{b} / {c}", p))
     _plot(records, out / "success_jerk.png")
     lines += ["", "![success vs jerk per backbone](success_jerk.png)"]
     write(out, lines, records)

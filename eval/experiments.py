@@ -549,6 +549,9 @@ def efficacy(args) -> None:
 
     out = RESULTS / "efficacy"
     stages = args.stages.split(",")
+    unknown = [b for b in args.experts.split(",") if b not in ef.BACKBONES]
+    if unknown:
+        raise SystemExit(f"experiments: unknown expert backbone(s) {unknown}; choose from {', '.join(ef.BACKBONES)}")
     units = []
     if "ablation" in stages:
         units += [Unit(b, name, ef.ALONE[name].to_dict(), t, s, 1, ef.BACKBONES[b])
@@ -560,17 +563,19 @@ def efficacy(args) -> None:
         units += [Unit("expert_jitter", name, cfg.to_dict(), t, s, 1, ef.BACKBONES["expert_jitter"])
                   for name, cfg in [(n, ef.ALONE[n]) for n in ef.DIAGNOSIS] + [("baseline", ef.COMPARED["baseline"])]
                   for t in range(10) for s in ef.DESIGN_SEEDS]
-    shipped = {k: ef.COMPARED[k] for k in ("baseline", "default")}
+    shipped = {k: ef.COMPARED[k] for k in ("baseline", ef.DEFAULT_V2)}  # ran on 5-9 while v2 shipped
     others = {k: v for k, v in ef.COMPARED.items() if k in ("temporal", "paper (eq. 2, c=0.05)", "paper Alg. 1 (c=1)")}
     for stage, seeds, configs in (("design", ef.DESIGN_SEEDS, ef.DESIGN), ("confirm", ef.CONFIRM_SEEDS, ef.CONFIRM),
                                   ("confirm2", ef.CONFIRM2_SEEDS, ef.CONFIRM2),
                                   ("confirm3", ef.CONFIRM3_SEEDS, ef.CONFIRM3),
                                   ("confirm_default", ef.CONFIRM_SEEDS, shipped),
                                   ("confirm_others", ef.CONFIRM_SEEDS, others),
-                                  ("confirm3_others", ef.CONFIRM3_SEEDS, others)):
+                                  ("confirm3_others", ef.CONFIRM3_SEEDS, others),
+                                  ("design3", ef.DESIGN_SEEDS, ef.DESIGN3),
+                                  ("confirm4", ef.CONFIRM4_SEEDS, ef.CONFIRM4)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
-                      for b in ef.BACKBONES for t in range(10) for s in seeds]
+                      for b in args.experts.split(",") for t in range(10) for s in seeds]
     lift_cfgs = {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}
     if "lift" in stages:
         for first in (ef.LIFT_DESIGN, ef.LIFT_CONFIRM):
@@ -595,8 +600,30 @@ def efficacy(args) -> None:
                     units.append(Unit(f"lift sigma={sg:.2f}", f"default, alpha_max={am}", cfg.to_dict(), 0,
                                       ef.LIFT_DESIGN, 20, expert, scene="lift"))
     units = list(dict.fromkeys(units))  # the screen's baselines are also design units
+    learned_records, learned_secs, learned_compute = [], 0.0, 0.0
+    if "learned" in stages or "learned_confirm" in stages:
+        names = args.learned.split(",")
+        ckpts = _checkpoints(names, args.checkpoints, "run policies/record_dataset.py then policies/train_backbones.py")
+        blocks = []
+        if "learned" in stages:  # the default, the candidates (and, on LEARNED_SCREENED, the default's
+            # rules one by one), design block 0-4
+            blocks.append((ef.DESIGN_SEEDS, names, {"baseline": PhysVLAConfig(mode="baseline"),
+                                                    ef.DEFAULT_V2: ef.COMPARED[ef.DEFAULT_V2],
+                                                    **{k: ef.COMPARED[k] for k in ef.LEARNED_CANDIDATES}}))
+            blocks.append((ef.DESIGN_SEEDS, [n for n in names if n in ef.LEARNED_SCREENED],
+                           {k: ef.ALONE[k] for k in ef.LEARNED_ALONE}))
+        if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
+            for name, only in ef.LEARNED_CONFIRM.items():
+                blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
+                               {name: ef.COMPARED[name]}))
+        # the learned experiment's units (same keys, same weights): shared with it, run once
+        lunits = [Unit(n, name, cfg.to_dict(), t, seeds.start, len(seeds), policy=str(ckpts[n].resolve()))
+                  for seeds, bbs, configs in blocks for n in bbs for name, cfg in configs.items() for t in range(10)]
+        learned_records, learned_secs = run_units(lunits, RESULTS / "learned", args.workers, args.backend)
+        learned_compute = COMPUTE_S[0]
     records, secs = run_units(units, out, args.workers, args.backend)
-    ef.report(out, records, secs, len(units), header, write)
+    COMPUTE_S[0] += learned_compute
+    ef.report(out, records, secs + learned_secs, len(units), header, write, learned=learned_records)
 
 
 def main() -> None:
@@ -626,7 +653,9 @@ def main() -> None:
     ap.add_argument("--weak-modes", default=None, help="learned: modes for the weak siblings (default: --modes)")
     ap.add_argument("--presets", default="default",
                     help="learned: presets run beside the modes (core.config.PRESETS; '' for none)")
-    ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass", help="efficacy: which stages to run")
+    ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass,design3,confirm4,learned,learned_confirm", help="efficacy: which stages to run")
+    ap.add_argument("--experts", default="expert_clean,expert_jitter,expert_faulty,expert_place_bias",
+                    help="efficacy: the scripted backbones (eval/efficacy.py BACKBONES) of the LIBERO stages")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")
     args = ap.parse_args()

@@ -4,7 +4,7 @@
     grasp      corrections.grasp_guidance
     transport  corrections.transport_smoothing
     place      corrections.place_deceleration        (eq. 5), or corrections.place_redirect
-               (place_rule=redirect)
+               (place_rule=redirect), or corrections.release_veto (place_rule=release_veto)
     (mode temporal: corrections.temporal_ema in every phase, instead of the above)
 
 The per-env arithmetic is compiled with numba (microseconds an env-step, where small-array numpy
@@ -27,11 +27,12 @@ from numba import njit
 
 from lerobot_physvla.core.corrections.approach_veto import approach_veto
 from lerobot_physvla.core.corrections.base import (
-    ACTIVE, D_OBJ_XY, D_TGT_XY, EEF, HIGH, LIFT, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_REDIRECT, TGT,
+    ACTIVE, D_OBJ_XY, D_TGT_XY, EEF, HIGH, HOLD, LIFT, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_REDIRECT, TGT,
 )
 from lerobot_physvla.core.corrections.grasp_guidance import grasp_guidance
 from lerobot_physvla.core.corrections.place_deceleration import place_deceleration
 from lerobot_physvla.core.corrections.place_redirect import place_redirect
+from lerobot_physvla.core.corrections.release_veto import release_veto
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
 from lerobot_physvla.core.corrections.transport_smoothing import transport_smoothing
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT, phase_of
@@ -65,12 +66,16 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
         grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == TRANSPORT:
         transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit)
+    elif phase == PLACE and p[PLACE_REDIRECT] > 1.5:
+        release_veto(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == PLACE and p[PLACE_REDIRECT] > 0.5:
         place_redirect(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == PLACE:
         place_deceleration(a_raw, a_phys, idx, geo, p, mem, commit)
     if commit:
         mem[ACTIVE] = 1.0 if phase == TRANSPORT else 0.0
+        if phase != PLACE:
+            mem[HOLD] = 0.0
     for k in range(a_phys.shape[0]):
         a_phys[k] = min(max(a_phys[k], p[LOW]), p[HIGH])
 

@@ -19,7 +19,7 @@ EL_MODES: tuple[str, ...] = ("soft", "gated", "off")
 WEIGHTINGS: tuple[str, ...] = ("joint_diag", "task_space")
 GRIPPER_RULES: tuple[str, ...] = ("blend", "veto")
 CHUNK_MODES: tuple[str, ...] = ("all", "first")
-PLACE_RULES: tuple[str, ...] = ("decelerate", "redirect")
+PLACE_RULES: tuple[str, ...] = ("decelerate", "redirect", "release_veto")
 PHASE_REFS: tuple[str, ...] = ("eef", "object")
 LOWPASS_RULES: tuple[str, ...] = ("off", "adaptive")
 PHASE_NAMES: tuple[str, ...] = ("approach", "grasp", "transport", "place")
@@ -144,9 +144,17 @@ class PhysVLAConfig:
             and lower, open fingers can still straddle a rim or a handle (LIBERO bowls: radius
             ~0.06 m + half the Panda's 0.08 m opening = 0.10 m), metres; 0 = everywhere in approach.
         place_rule: decelerate (eq. 5) | redirect (place: the horizontal channels steer the held
-            object's centre over the target's, redirect_gain (p_tgt - p_obj) / scale).
+            object's centre over the target's, redirect_gain (p_tgt - p_obj) / scale) |
+            release_veto (place: only while the policy opens the gripper with the object off the
+            target, the gripper is held closed and the object steered as by redirect).
         redirect_gain: gain of the place redirection, action units per action unit of error (1 =
             close the whole horizontal error in one step if the controller tracked perfectly).
+        redirect_tol_m: the place redirection leaves the policy's own x, y while the held object's
+            centre is within this of the target's, and steers only the error beyond it, metres
+            (0 = steer onto the exact centre); with place_rule=release_veto, a release with the
+            object's centre further than this from the target's is held back.
+        hold_steps: place_rule=release_veto holds a release back for at most this many control
+            steps in a row, then lets the policy's command through.
         phase_ref: what d_tgt_xy of eq. (3) measures from once the object is lifted: eef (paper)
             | object (the held object's centre; a rim grasp holds it centimetres off the hand).
         lowpass: off | adaptive: a low-pass on the executed position channels whose strength
@@ -181,6 +189,8 @@ class PhysVLAConfig:
     veto_reach_m: float = 0.0
     place_rule: str = "decelerate"
     redirect_gain: float = 0.5
+    redirect_tol_m: float = 0.0
+    hold_steps: int = 40
     phase_ref: str = "eef"
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
@@ -231,9 +241,11 @@ class PhysVLAConfig:
         if not 0.0 <= self.lowpass_rough_lo < self.lowpass_rough_hi:
             raise ValueError("physvla: need 0 <= lowpass_rough_lo < lowpass_rough_hi, got "
                              f"{self.lowpass_rough_lo}, {self.lowpass_rough_hi}")
-        if not (self.veto_height_m >= 0 and self.veto_reach_m >= 0 and self.redirect_gain > 0):
-            raise ValueError("physvla: need veto_height_m >= 0, veto_reach_m >= 0 and redirect_gain > 0, got "
-                             f"{self.veto_height_m}, {self.veto_reach_m}, {self.redirect_gain}")
+        if not (self.veto_height_m >= 0 and self.veto_reach_m >= 0 and self.redirect_gain > 0
+                and self.redirect_tol_m >= 0 and self.hold_steps >= 0):
+            raise ValueError("physvla: need veto_height_m >= 0, veto_reach_m >= 0, redirect_gain > 0 and "
+                             f"redirect_tol_m >= 0, got {self.veto_height_m}, {self.veto_reach_m}, "
+                             f"{self.redirect_gain}, {self.redirect_tol_m}")
 
     @property
     def caps(self) -> tuple[float, float, float, float]:
@@ -285,10 +297,12 @@ PRESETS: dict[str, PhysVLAConfig] = {
     "paper": PhysVLAConfig(mode="phys_el"),
     # the supplement's Algorithm 1: Phys executes a_phys in full, Dyn blends w a_phys + (1 - w) a_raw
     "paper_alg1": PhysVLAConfig(mode="phys_el", cap=1.0),
-    # beyond the paper (docs/method.md): only corrections that are right from the state alone
+    # beyond the paper (docs/method.md): only corrections that are right from the state alone: the
+    # gripper veto where no finger can reach the object, the release veto where the held object
+    # would land more than 2 cm off the target
     "default": PhysVLAConfig(
         mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
-        veto_reach_m=0.10, place_rule="redirect", phase_ref="object",
+        veto_reach_m=0.10, place_rule="release_veto", redirect_tol_m=0.02, phase_ref="object",
     ),
 }
 DEFAULT_PRESET = "default"

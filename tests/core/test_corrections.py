@@ -136,3 +136,63 @@ def test_place_redirect_steers_the_held_object_over_the_target():
     # x, y: 0.5 * (target - object) / 0.05 m per unit; z, rotation and gripper are the policy's
     np.testing.assert_allclose(out[:2], 0.5 * np.array([0.02, -0.03]) / 0.05)
     np.testing.assert_array_equal(out[2:], a[2:])
+
+
+def test_place_redirect_leaves_the_policy_alone_within_its_tolerance_and_steers_only_the_excess():
+    from lerobot_physvla.core.corrections.base import TGT
+    from lerobot_physvla.core.corrections.place_redirect import place_redirect
+
+    idx, geo, p, mem = ctx(place_rule="redirect", redirect_gain=0.5, redirect_tol_m=0.02)
+    geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
+    a = np.array([0.3, -0.4, -0.3, 0.1, 0.2, 0.3, 1.0])
+    # 1 cm off (a learned policy's own release point): its x, y untouched
+    geo[OBJ:OBJ + 3] = (0.12, 0.00, 0.95)
+    np.testing.assert_array_equal(run(place_redirect, a, idx, geo, p, mem), a)
+    # 5 cm off along y: steered by the 3 cm beyond the tolerance, toward the target
+    geo[OBJ:OBJ + 3] = (0.12, 0.04, 0.95)
+    out = run(place_redirect, a, idx, geo, p, mem)
+    np.testing.assert_allclose(out[:2], [0.0, 0.5 * -0.03 / 0.05], atol=1e-12)
+    np.testing.assert_array_equal(out[2:], a[2:])
+
+
+def test_release_veto_holds_back_only_a_release_that_would_miss_and_yields_after_hold_steps():
+    from lerobot_physvla.core.corrections.base import HOLD, TGT
+    from lerobot_physvla.core.corrections.release_veto import release_veto
+
+    idx, geo, p, mem = ctx(place_rule="release_veto", redirect_gain=0.5, redirect_tol_m=0.02, hold_steps=3)
+    geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
+    geo[OBJ:OBJ + 3] = (0.12, 0.04, 0.95)  # 5 cm off the target
+    carrying = np.array([0.3, -0.4, -0.3, 0.1, 0.2, 0.3, 1.0])  # gripper closed (robosuite: +1)
+    releasing = carrying.copy()
+    releasing[6] = -1.0
+    # still carrying: every channel the policy's, however far off the object is
+    np.testing.assert_array_equal(run(release_veto, carrying, idx, geo, p, mem), carrying)
+    assert mem[HOLD] == 0
+    # opening 5 cm off: held closed, x, y steered by the 3 cm beyond the tolerance, z the policy's
+    out = run(release_veto, releasing, idx, geo, p, mem)
+    assert out[6] == 1.0
+    np.testing.assert_allclose(out[:2], [0.0, 0.5 * -0.03 / 0.05], atol=1e-12)
+    np.testing.assert_array_equal(out[2:6], releasing[2:6])
+    # a look-ahead step of a chunk does not advance the hold count
+    run(release_veto, releasing, idx, geo, p, mem, commit=False)
+    assert mem[HOLD] == 1
+    # within the tolerance the release goes through
+    geo[OBJ:OBJ + 3] = (0.12, 0.005, 0.95)
+    np.testing.assert_array_equal(run(release_veto, releasing, idx, geo, p, mem), releasing)
+    assert mem[HOLD] == 0
+    # a target out of reach: the hold yields after hold_steps steps in a row
+    geo[OBJ:OBJ + 3] = (0.12, 0.04, 0.95)
+    held = [run(release_veto, releasing, idx, geo, p, mem)[6] for _ in range(5)]
+    assert held == [1.0, 1.0, 1.0, -1.0, -1.0]
+
+
+def test_release_veto_on_fetch_closes_with_the_layouts_own_sign():
+    from lerobot_physvla.core.config import FETCH_4D
+    from lerobot_physvla.core.corrections.base import TGT
+    from lerobot_physvla.core.corrections.release_veto import release_veto
+
+    idx, geo, p, mem = ctx(layout=FETCH_4D, place_rule="release_veto", redirect_tol_m=0.02)
+    geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
+    geo[OBJ:OBJ + 3] = (0.12, 0.04, 0.95)
+    out = run(release_veto, [0.0, 0.0, -0.2, 1.0], idx, geo, p, mem)  # Fetch: +1 = open
+    assert out[3] == -1.0

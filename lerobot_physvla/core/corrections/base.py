@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lerobot_physvla.core.config import ActionLayout, PhysVLAConfig
+from lerobot_physvla.core.config import PLACE_RULES, ActionLayout, PhysVLAConfig
 
 # idx
 X, Y, Z, GRIPPER = range(4)
@@ -32,12 +32,14 @@ D_OBJ_XY, D_TGT_XY, LIFT = 9, 10, 11  # m
 N_GEO = 12
 # p
 (BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M, LIFT_BIAS_U, ALPHA_TRANSPORT, D_THRESH_M, METRES_PER_UNIT,
- GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL, PLACE_REDIRECT, REDIRECT_GAIN, PHASE_REF_OBJECT) = range(15)
-N_PARAMS = 15
+ GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL, PLACE_REDIRECT, REDIRECT_GAIN, PHASE_REF_OBJECT, REDIRECT_TOL_M,
+ HOLD_STEPS) = range(17)
+N_PARAMS = 17
 # mem
 EMA = 0  # 3 entries: x, y, z, action units
 ACTIVE = 3  # 1.0 once the EMA holds a value (transport: the previous step was in transport)
-N_MEM = 4
+HOLD = 4  # place_rule=release_veto: control steps the release has been held back in a row
+N_MEM = 5
 
 
 def channel_index(layout: ActionLayout) -> np.ndarray:
@@ -57,7 +59,9 @@ def params(cfg: PhysVLAConfig, layout: ActionLayout) -> np.ndarray:
     p[GRIPPER_OPEN] = layout.gripper_open
     p[LOW], p[HIGH] = layout.low, layout.high
     p[ALPHA_TEMPORAL] = cfg.alpha_temporal
-    p[PLACE_REDIRECT] = cfg.place_rule == "redirect"
+    p[PLACE_REDIRECT] = PLACE_RULES.index(cfg.place_rule)  # 0 decelerate, 1 redirect, 2 release_veto
     p[REDIRECT_GAIN] = cfg.redirect_gain
     p[PHASE_REF_OBJECT] = cfg.phase_ref == "object"
+    p[REDIRECT_TOL_M] = cfg.redirect_tol_m
+    p[HOLD_STEPS] = cfg.hold_steps
     return p
