@@ -275,11 +275,12 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                          ("3b. Second confirmation block (init states 10-14, n = 50 per cell): default v1, "
                           "chosen after block 5-9 showed candidate 1's cost; no decision looked at this block",
                           CONFIRM2_SEEDS),
-                         ("3c. Third confirmation block (init states 15-19, n = 50 per cell): the shipped default "
-                          "(v1 + the veto's reach), chosen on the design block after 10-14 showed v1's cost; no "
-                          "decision looked at this block", CONFIRM3_SEEDS),
-                         ("3d. Fourth confirmation block (init states 20-24, n = 50 per cell): candidate 3, the "
-                          "place redirection with a tolerance, chosen on the design block after the learned "
+                         ("3c. Third confirmation block (init states 15-19, n = 50 per cell): default v2 "
+                          "(v1 + the veto's reach; shipped until the release veto replaced it), chosen on the "
+                          "design block after 10-14 showed v1's cost; no decision looked at this block",
+                          CONFIRM3_SEEDS),
+                         ("3d. Fourth confirmation block (init states 20-24, n = 50 per cell): the shipped "
+                          "default (candidate 4, the release veto), chosen on the design block after the learned "
                           "backbones showed the redirection's cost (section 7); no decision looked at this block",
                           CONFIRM4_SEEDS)):
         recs = _block(records, seeds)
@@ -324,8 +325,9 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                     j = [float(np.mean([r["mean_jerk"] for r in cell])) for cell in cells]
                     k = [f"{sum(r['success'] for r in cell)}/{len(cell)}" for cell in cells]
                     lines.append(f"| {sim} | {c} | {k[0]} | {k[1]} | {j[0]:.2f} | {j[1]:.2f} | {(j[1] - j[0]) / j[0]:+.0%} |")
-    for title, seeds in (("7. Learned backbones: the default, its rules one by one and candidate 3 (design block, "
-                          "init states 0-4, n = 50 per cell)", DESIGN_SEEDS),
+    for title, seeds in (("7. Learned backbones: default v2, its rules one by one, candidate 3 (redirection with "
+                          "a 0.015 m tolerance) and the shipped default (candidate 4: the release veto) (design "
+                          "block, init states 0-4, n = 50 per cell)", DESIGN_SEEDS),
                          ("7b. Learned backbones, confirmation block (init states 5-9, n = 50 per cell; no corrector "
                           "decision looked at it)", CONFIRM_SEEDS)):
         recs = [r for r in learned if r["seed"] in seeds]
