@@ -27,7 +27,7 @@ from numba import njit
 
 from lerobot_physvla.core.corrections.approach_veto import approach_veto
 from lerobot_physvla.core.corrections.base import (
-    ACTIVE, D_OBJ_XY, D_TGT_XY, EEF, HIGH, HOLD, LIFT, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_REDIRECT, TGT,
+    ACTIVE, D_OBJ_XY, D_TGT_XY, EEF, HIGH, HOLD, LIFT, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_RULE, TGT,
 )
 from lerobot_physvla.core.corrections.grasp_guidance import grasp_guidance
 from lerobot_physvla.core.corrections.place_deceleration import place_deceleration
@@ -66,9 +66,9 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
         grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == TRANSPORT:
         transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit)
-    elif phase == PLACE and p[PLACE_REDIRECT] > 1.5:
+    elif phase == PLACE and p[PLACE_RULE] > 1.5:
         release_veto(a_raw, a_phys, idx, geo, p, mem, commit)
-    elif phase == PLACE and p[PLACE_REDIRECT] > 0.5:
+    elif phase == PLACE and p[PLACE_RULE] > 0.5:
         place_redirect(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == PLACE:
         place_deceleration(a_raw, a_phys, idx, geo, p, mem, commit)

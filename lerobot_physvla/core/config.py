@@ -243,9 +243,9 @@ class PhysVLAConfig:
                              f"{self.lowpass_rough_lo}, {self.lowpass_rough_hi}")
         if not (self.veto_height_m >= 0 and self.veto_reach_m >= 0 and self.redirect_gain > 0
                 and self.redirect_tol_m >= 0 and self.hold_steps >= 0):
-            raise ValueError("physvla: need veto_height_m >= 0, veto_reach_m >= 0, redirect_gain > 0 and "
-                             f"redirect_tol_m >= 0, got {self.veto_height_m}, {self.veto_reach_m}, "
-                             f"{self.redirect_gain}, {self.redirect_tol_m}")
+            raise ValueError("physvla: need veto_height_m >= 0, veto_reach_m >= 0, redirect_gain > 0, "
+                             f"redirect_tol_m >= 0 and hold_steps >= 0, got {self.veto_height_m}, "
+                             f"{self.veto_reach_m}, {self.redirect_gain}, {self.redirect_tol_m}, {self.hold_steps}")
 
     @property
     def caps(self) -> tuple[float, float, float, float]:

@@ -32,7 +32,7 @@ D_OBJ_XY, D_TGT_XY, LIFT = 9, 10, 11  # m
 N_GEO = 12
 # p
 (BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M, LIFT_BIAS_U, ALPHA_TRANSPORT, D_THRESH_M, METRES_PER_UNIT,
- GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL, PLACE_REDIRECT, REDIRECT_GAIN, PHASE_REF_OBJECT, REDIRECT_TOL_M,
+ GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL, PLACE_RULE, REDIRECT_GAIN, PHASE_REF_OBJECT, REDIRECT_TOL_M,
  HOLD_STEPS) = range(17)
 N_PARAMS = 17
 # mem
@@ -59,7 +59,7 @@ def params(cfg: PhysVLAConfig, layout: ActionLayout) -> np.ndarray:
     p[GRIPPER_OPEN] = layout.gripper_open
     p[LOW], p[HIGH] = layout.low, layout.high
     p[ALPHA_TEMPORAL] = cfg.alpha_temporal
-    p[PLACE_REDIRECT] = PLACE_RULES.index(cfg.place_rule)  # 0 decelerate, 1 redirect, 2 release_veto
+    p[PLACE_RULE] = PLACE_RULES.index(cfg.place_rule)  # 0 decelerate, 1 redirect, 2 release_veto
     p[REDIRECT_GAIN] = cfg.redirect_gain
     p[PHASE_REF_OBJECT] = cfg.phase_ref == "object"
     p[REDIRECT_TOL_M] = cfg.redirect_tol_m

@@ -17,9 +17,8 @@ which the policy's command goes through as it is.
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import (
-    GRIPPER, GRIPPER_OPEN, HOLD, HOLD_STEPS, METRES_PER_UNIT, OBJ, REDIRECT_GAIN, REDIRECT_TOL_M, TGT,
-)
+from lerobot_physvla.core.corrections.base import GRIPPER, GRIPPER_OPEN, HOLD, HOLD_STEPS
+from lerobot_physvla.core.corrections.place_redirect import steer
 
 
 @njit(cache=True, error_model="numpy")
@@ -28,12 +27,9 @@ def release_veto(a_raw, a_phys, idx, geo, p, mem, commit):
     g = idx[GRIPPER]
     miss = False  # the policy opens with the object's centre beyond tol of the target's
     if g >= 0 and a_raw[g] * p[GRIPPER_OPEN] > 0.0:
-        ex, ey = geo[TGT] - geo[OBJ], geo[TGT + 1] - geo[OBJ + 1]
-        n = (ex * ex + ey * ey) ** 0.5
-        tol = p[REDIRECT_TOL_M]
-        miss = n > tol
+        k, ex, ey = steer(geo, p)
+        miss = k > 0.0
         if miss and mem[HOLD] < p[HOLD_STEPS]:
-            k = p[REDIRECT_GAIN] * (1.0 - tol / n) / p[METRES_PER_UNIT]
             a_phys[g] = -p[GRIPPER_OPEN]
             a_phys[idx[0]] = k * ex
             a_phys[idx[1]] = k * ey
