@@ -135,8 +135,7 @@ LEARNED_CONFIRM = {"baseline": ("act_single",), CANDIDATE_3: ("act_single",)}
 DESIGN3 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_3, CANDIDATE_4)}
 CONFIRM4_SEEDS = range(20, 25)
 CONFIRM4 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_4)}
-# the shipped default (candidate 4) has not run on Lift / Fetch yet: its rows are v2's
-LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2)
+LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4)
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 LIFT_DESIGN, LIFT_CONFIRM = 7, 100  # first seeds of the Lift / Fetch blocks (20 trials each)

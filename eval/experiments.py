@@ -385,6 +385,18 @@ def _train_backbones():
     return train_backbones
 
 
+def _records_on_disk(units: list, out: Path) -> list[dict]:
+    """The records of units already on disk, read as they are (no checkpoint needed, nothing run);
+    exits naming what is missing."""
+    missing = [u.key for u in units if not (out / "units" / f"{u.key}.json").exists()]
+    if missing:
+        raise SystemExit(f"experiments: {len(missing)} learned units are not on disk (e.g. {missing[0]}); "
+                         "train the checkpoints (policies/train_backbones.py) and drop --learned-on-disk to run them")
+    payloads = [json.loads((out / "units" / f"{u.key}.json").read_text()) for u in units]
+    COMPUTE_S[0] = sum(p["seconds"] for p in payloads)
+    return [r for p in payloads for r in p["records"]]
+
+
 def _checkpoints(names: list[str], root: str, fix: str) -> dict[str, Path]:
     """Each learned backbone's checkpoint directory; one clear error naming the missing ones."""
     ckpts = {n: _train_backbones().checkpoint(n, root) for n in names}
@@ -603,7 +615,11 @@ def efficacy(args) -> None:
     learned_records, learned_secs, learned_compute = [], 0.0, 0.0
     if "learned" in stages or "learned_confirm" in stages:
         names = args.learned.split(",")
-        ckpts = _checkpoints(names, args.checkpoints, "run policies/record_dataset.py then policies/train_backbones.py")
+        if args.learned_on_disk:  # report only: the units as they are on disk (each records its weights' sha256)
+            ckpts = {n: Path(args.checkpoints) / n for n in names}
+        else:
+            ckpts = _checkpoints(names, args.checkpoints,
+                                 "run policies/record_dataset.py then policies/train_backbones.py")
         blocks = []
         if "learned" in stages:  # the default, the candidates (and, on LEARNED_SCREENED, the default's
             # rules one by one), design block 0-4
@@ -619,7 +635,10 @@ def efficacy(args) -> None:
         # the learned experiment's units (same keys, same weights): shared with it, run once
         lunits = [Unit(n, name, cfg.to_dict(), t, seeds.start, len(seeds), policy=str(ckpts[n].resolve()))
                   for seeds, bbs, configs in blocks for n in bbs for name, cfg in configs.items() for t in range(10)]
-        learned_records, learned_secs = run_units(lunits, RESULTS / "learned", args.workers, args.backend)
+        if args.learned_on_disk:
+            learned_records, learned_secs = _records_on_disk(lunits, RESULTS / "learned"), 0.0
+        else:
+            learned_records, learned_secs = run_units(lunits, RESULTS / "learned", args.workers, args.backend)
         learned_compute = COMPUTE_S[0]
     records, secs = run_units(units, out, args.workers, args.backend)
     COMPUTE_S[0] += learned_compute
@@ -645,6 +664,9 @@ def main() -> None:
     ap.add_argument("--learned", default="act_single,act_single_weak,act_chunk,act_chunk_weak,diffusion_chunk",
                     help="learned: which trained recipes (of policies/train_backbones.py)")
     ap.add_argument("--modes", default=",".join(MODES), help="learned: which of the four modes")
+    ap.add_argument("--learned-on-disk", action="store_true",
+                    help="efficacy: read the learned stages' units from disk as they are (no checkpoints needed, "
+                         "none run; for regenerating the report on a machine without the trained weights)")
     ap.add_argument("--ckpts", default="act_single@4000,act_single_cpu@4800,act_single_cpu@6400,act_single_cpu@8000,"
                                        "act_chunk@2400,act_chunk_cpu@2400,act_chunk_cpu@3600,act_chunk_cpu@4800,"
                                        "act_chunk_cpu@6000,act_single@20000,act_single_cpufull@20000",
