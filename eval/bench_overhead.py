@@ -16,11 +16,16 @@
    (caches cold, as in a rollout) and again three times back to back on the same inputs (warm).
    B = 8 reads the env 8 times (each env reads its own state) and counts (capture + step) / 8.
    A no-op path (the same tensor conversions, no correction) is timed beside it.
-3. First call: a fresh process builds the env, the source and the steps, then times the very
+3. Whole path inside lerobot-eval: `lerobot-eval --policy.postprocess=physvla` itself (its
+   eval_main in a fresh process, the scripted policy checkpoint, B = 1 and B = 8 on a sync vector
+   env), the reads, the capture step and the corrector step each timed where lerobot calls them,
+   between lerobot's own work: what a user pays, with lerobot's and the policy's cache traffic.
+4. First call: a fresh process builds the env, the source and the steps, then times the very
    first whole-path call (and the first no-op call).
-4. Memory: RSS growth of the corrector step over 10^5 steps (B = 1), without and with the recorder.
+5. Memory: RSS growth of the corrector step over 10^5 steps (B = 1), without and with the recorder.
 
-Prints every row and, last, `whole path p50 <x> us, p99 <y> us, first call <z> us (B=1)` (live).
+Prints every row and, last, `whole path p50 <x> us, p99 <y> us, first call <z> us (B=1)` (inside
+lerobot-eval, item 3).
 Writes a markdown table and a JSON next to it.
 """
 
@@ -31,8 +36,10 @@ import gc
 import json
 import os
 import platform
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -51,6 +58,7 @@ from lerobot_physvla.processor.physvla_processor import (
     EXTRA_KEY, ROBOT_STATE, STATE_KEY, PhysVLACorrectorStep, PhysVLAStateCaptureStep,
 )
 
+ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = {
     "no-op (identity function)": None,
     "baseline mode (phases only)": PhysVLAConfig(mode="baseline"),
@@ -247,6 +255,78 @@ def first_call() -> dict:
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
+_IN_EVAL = r"""
+import json, sys, time, warnings
+warnings.simplefilter("ignore")
+policy, batch, episodes, out_dir, flags = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5:]
+from lerobot_physvla.envs.libero_physvla import PhysVLAStateExport
+from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+from lerobot_physvla.processor.physvla_processor import PhysVLAStateCaptureStep, PhysVLACorrectorStep
+clock = time.perf_counter
+events = []  # (what, seconds) in call order
+def timed(cls, name, what):
+    orig = getattr(cls, name)
+    def call(self, *args, **kwargs):
+        t0 = clock(); r = orig(self, *args, **kwargs); events.append((what, clock() - t0)); return r
+    setattr(cls, name, call)
+read = RobosuiteStateSource.read_packed
+def read_in_ticks(self):  # the read the source makes when it is built is no control tick's
+    if not getattr(self, "_built", False):
+        self._built = True
+        return read(self)
+    t0 = clock(); r = read(self); events.append(("read", clock() - t0)); return r
+RobosuiteStateSource.read_packed = read_in_ticks
+timed(PhysVLAStateCaptureStep, "__call__", "capture")
+timed(PhysVLACorrectorStep, "__call__", "step")
+timed(PhysVLAStateExport, "step", "env_step")
+from lerobot_physvla.scripts.lerobot_physvla_eval import activate_eval
+argv = ["lerobot-eval", f"--policy.path={policy}", "--env.type=libero_physvla", "--env.cameras=false",
+        "--env.task=libero_spatial", "--env.task_ids=[0]", f"--eval.n_episodes={episodes}", f"--eval.batch_size={batch}",
+        "--eval.use_async_envs=false", "--env.episode_length=200", "--policy.postprocess=physvla",
+        f"--output_dir={out_dir}", *flags]
+activate_eval(argv)
+sys.argv = argv
+from lerobot.scripts import lerobot_eval
+from lerobot.utils.import_utils import register_third_party_plugins
+register_third_party_plugins()
+lerobot_eval.eval_main()
+print("EVENTS" + json.dumps(events))
+"""
+
+
+def in_eval(batch: int, episodes: int, policy: Path, out: Path, flags: tuple = ()) -> dict:
+    """The whole path inside lerobot-eval's own loop (a fresh process running its eval_main with
+    --policy.postprocess=physvla, phys_el, the scripted policy checkpoint, a sync vector env): the
+    state reads, the capture step and the corrector step (its EpisodeRecorder included), each
+    timed by a wrapper around it, grouped per policy call. Per env-step: (reads + capture + step) / B."""
+    r = subprocess.run([sys.executable, "-c", _IN_EVAL, str(policy), str(batch), str(episodes), str(out), *flags],
+                       capture_output=True, text=True, cwd=Path(__file__).resolve().parent,
+                       env={**os.environ, "PYTHONWARNINGS": "ignore"})
+    line = [x for x in r.stdout.splitlines() if x.startswith("EVENTS")]
+    if r.returncode != 0 or not line:
+        raise RuntimeError(r.stderr[-3000:])
+    groups, reads, env_steps, capture = [], [], [], None
+    for what, sec in json.loads(line[-1][len("EVENTS"):]):
+        us = sec * 1e6
+        if what == "read":
+            reads.append(us)
+        elif what == "env_step":
+            env_steps.append(us)
+        elif what == "capture":
+            capture = us
+        elif what == "step" and capture is not None:  # one policy call: the reads since the last one
+            groups.append({"read": sum(reads) / batch, "capture": capture / batch, "step": us / batch,
+                           "reads": len(reads)})
+            reads, capture = [], None
+    tot = np.array([g["read"] + g["capture"] + g["step"] for g in groups])
+    later = tot[1:]
+    return {"batch": batch, "calls": len(groups), "first_us": float(tot[0]), "p50_us": float(np.median(later)),
+            "p99_us": float(np.percentile(later, 99)), "max_us": float(later.max()),
+            **{f"p50_{k}_us": float(np.median([g[k] for g in groups[1:]])) for k in ("read", "capture", "step")},
+            **{f"p99_{k}_us": float(np.percentile([g[k] for g in groups[1:]], 99)) for k in ("read", "capture", "step")},
+            "env_step_us_p50": float(np.median(env_steps)) / 1.0}
+
+
 def _rss_bytes() -> int:
     return int(Path("/proc/self/statm").read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
@@ -282,6 +362,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--episodes", type=int, default=2, help="live episodes of the whole-path rows")
     ap.add_argument("--memory-steps", type=int, default=100_000)
+    ap.add_argument("--eval-episodes", type=int, default=4, help="lerobot-eval episodes per env (in-eval rows)")
     ap.add_argument("--out", default="eval/results/bench_overhead")
     args = ap.parse_args()
 
@@ -350,6 +431,35 @@ def main() -> None:
         lines.append(line)
         print(line, flush=True)
 
+    print("whole path inside lerobot-eval (B = 1, 8) ...", flush=True)
+    tmp = Path(tempfile.mkdtemp(prefix="physvla_bench_"))
+    policy = tmp / "scripted"
+    subprocess.run([sys.executable, str(ROOT / "policies/make_scripted_policy.py"), str(policy)], check=True,
+                   capture_output=True)
+    ev = {b: in_eval(b, episodes, policy, tmp / f"eval{b}") for b, episodes in ((1, args.eval_episodes),
+                                                                            (8, 8 * args.eval_episodes))}
+    shutil.rmtree(tmp, ignore_errors=True)
+    results["in_eval"] = ev
+    lines += [
+        "\n## The whole path inside lerobot-eval (phys_el, diagnostics included)\n",
+        "`lerobot-eval --policy.postprocess=physvla --physvla.mode=phys_el` itself (its `eval_main`, in a fresh "
+        "process; the scripted policy checkpoint; LIBERO-Spatial task 0, state-only, 200-step episodes; a sync vector "
+        "env so that every read runs in this process): the state reads (inside the env's step), the capture step "
+        "(env preprocessor) and the corrector step with its EpisodeRecorder (policy postprocessor), each timed by a "
+        "wrapper around it where lerobot calls it, between lerobot's own work (the physics step, the policy, "
+        "lerobot's tensor conversions). Per env-step: (the B reads + capture + step) / B, per policy call; p50 / "
+        f"p99 / max over the calls after the first. Episodes: {args.eval_episodes} at B = 1, "
+        f"{8 * args.eval_episodes} at B = 8.\n",
+        "| B | calls | p50 total (us) | p99 total (us) | max (us) | first call (us) | p50 read (us) | p50 capture (us) | "
+        "p50 corrector step (us) | p99 corrector step (us) | total / env step |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for b, r in ev.items():
+        lines.append(f"| {b} | {r['calls']} | {r['p50_us']:.1f} | {r['p99_us']:.1f} | {r['max_us']:.0f} | "
+                     f"{r['first_us']:.0f} | {r['p50_read_us']:.1f} | {r['p50_capture_us']:.1f} | "
+                     f"{r['p50_step_us']:.1f} | {r['p99_step_us']:.1f} | {r['p50_us'] / r['env_step_us_p50']:.4f} |")
+        print(lines[-1], flush=True)
+
     fc = first_call()
     results["first_call"] = fc
     lines += [
@@ -368,12 +478,14 @@ def main() -> None:
     for name, m in mem.items():
         lines.append(f"| {name} | {m['rss_growth_bytes'] / 1024:.0f} | {m['bytes_per_step']:.1f} |")
         print(lines[-1], flush=True)
-    lines.append("\nThe recorder keeps every step of the evaluation by design (the per-episode diagnostics); the "
-                 "step alone allocates nothing that outlives a call.")
+    lines.append("\nThe step allocates nothing that outlives a call. The recorder keeps per-step rows for the "
+                 "running rollout batch only: when every env restarts (here: each time the recorded episode wraps "
+                 "around) the finished episodes are reduced to their records and the rows are reused.")
 
-    live = results["whole_path"]["live B=1"]
+    live = results["in_eval"][1]
     last = (f"whole path p50 {live['p50_us']:.1f} us, p99 {live['p99_us']:.1f} us, first call "
-            f"{fc['first_call_us']:.0f} us (B=1)")
+            f"{live['first_us']:.0f} us (B=1)")
+    lines.append("\nThe last line is the B = 1 row of the whole path inside lerobot-eval.")
     lines.append(f"\n{last}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -16,6 +16,7 @@ from lerobot_physvla.core.phase import PHASE_NAMES
 
 # the Branch A correction each phase applies (docs/method.md)
 CORRECTIONS = ("approach veto", "grasp guidance", "transport EMA + lift", "place guidance")
+PHASE_INDEX = {**{name: i for i, name in enumerate(PHASE_NAMES)}, "pass-through": -1}  # phase_timeline's names
 PHASE_COLOURS = ("#dbe9f6", "#fde2c8", "#d9f0d3", "#eadcf0")
 SHORT = {"approach veto": "veto", "grasp guidance": "grasp", "transport EMA + lift": "transport",
          "place guidance": "place", "branch B": "B"}

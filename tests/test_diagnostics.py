@@ -1,5 +1,7 @@
 """Episode splitting of the recorder: batches, successes, frozen sub-envs, executed-action echo."""
 
+import json
+
 import numpy as np
 
 from lerobot_physvla.core.config import PhysVLAConfig
@@ -61,3 +63,42 @@ def test_a_listener_call_copies_what_it_keeps():
     phase0 = rec.episodes[0].phase.copy()
     corr.diag_buffer[:] = 7.0
     assert (rec.episodes[0].phase == phase0).all()
+
+
+def _run_batches(rec, corr, batches: int, steps: int) -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(batches):
+        for t in range(steps):
+            st = make_state(batch_size=2, obj=(0.02 * (steps - t), 0.0, 0.9), seed=t)  # approach, then grasp
+            st.episode_step[:] = t
+            raw = rng.uniform(-1, 1, (2, 7))
+            rec(raw, corr(raw, st), st.pack(), None, corr, 1e-5 * (1 + t % 3))
+
+
+def test_finished_batches_are_compacted_with_the_same_records_and_flat_memory():
+    from lerobot_physvla.core.config import LAYOUTS
+
+    lay = LAYOUTS["libero_osc_pose"]
+    full = EpisodeRecorder(layout=lay, keep_steps=None)
+    compact = EpisodeRecorder(layout=lay, keep_steps=3)
+    c1, c2 = Corrector(PhysVLAConfig(), 2), Corrector(PhysVLAConfig(), 2)
+    _run_batches(full, c1, 2, 30)
+    _run_batches(compact, c2, 2, 30)
+    rows_after_two = compact._seg.raw.nbytes
+    _run_batches(compact, c2, 40, 30)  # 20x more steps: the recording's rows are reused
+    assert compact._seg.raw.nbytes == rows_after_two and compact._seg.n == 30
+    _run_batches(full, c1, 40, 30)
+    a, b = full.records(), compact.records()
+    assert len(a) == len(b) == 84
+    for ra, rb in zip(a, b):
+        assert ("raw_actions" in rb) == (rb["episode"] < 3)  # per-step arrays: the first 3 episodes only
+        for key, value in rb.items():
+            assert ra[key] == value or (value != value and ra[key] != ra[key]), key
+    assert [e.raw.shape[0] for e in compact.episodes[:4]] == [30, 30, 30, 0]
+    assert json.dumps(full.summary(), sort_keys=True) == json.dumps(compact.summary(), sort_keys=True)  # NaN-aware
+    # the env's own success, applied after the batch was compacted, still counts (and moves efficiency)
+    compact.horizon = full.horizon = 60
+    for rec in (full, compact):
+        rec.apply_env_successes({-1: [True] + [False] * 83})
+    assert compact.records()[0]["success"] and compact.records()[0]["efficiency"] == 0.5
+    assert json.dumps(full.summary(), sort_keys=True) == json.dumps(compact.summary(), sort_keys=True)  # NaN-aware

@@ -46,6 +46,9 @@ from lerobot_physvla.core.tick import (
 
 
 
+_NAN = float("nan")
+
+
 @dataclass
 class StepDiagnostics:
     """What the corrector saw and did at one call, per env (for a chunk: its first step).
@@ -120,6 +123,9 @@ class Corrector:
         self._hold0 = lay.hold()
         self._last_out = np.zeros((b, lay.dim))  # the action each env emitted last (the hold of absolute channels)
         self._has_last = np.zeros(b, np.bool_)
+        self._flat_width, self._n = -1, 0  # packed-state width last seen and its joint count
+        self._ip = np.zeros(0, np.int64)  # the tick's integer parameters for that joint count
+        self._shape_2d = (b, lay.dim)
         self._params: dict[int, np.ndarray] = {}  # joint count -> integer parameters of the tick (tick.py)
         self._fp = self._float_params()
         # diagnostics of the latest committed step, written in place by the kernel (columns: tick.py)
@@ -191,14 +197,33 @@ class Corrector:
     def correct_packed(self, actions, flat: np.ndarray) -> np.ndarray:
         """As `__call__`, with the states already packed: flat (B, packed_size(n)) float64."""
         t0 = time.perf_counter()
-        return self._correct(self._check(actions), flat, t0)
+        a = np.ascontiguousarray(actions, dtype=np.float64)
+        if (a.shape == self._shape_2d and flat.ndim == 2 and flat.shape[0] == self.batch_size
+                and flat.shape[1] == self._flat_width and flat.dtype == np.float64 and flat.flags.c_contiguous
+                and not self.profile):
+            # the control loop's case, every check above: one step of B envs, a state width seen
+            # before; one compiled call, and the Python around it kept short
+            self.steps += self.batch_size
+            out, events = correct_tick(a, flat, self._ip, self._fp, self._idx, self._p_a, self._mem, self._lp_mem,
+                                       self._absolute, self._hold0, self._last_out, self._has_last, True,
+                                       self.diag_buffer)
+            self._t_a = self._t_b = _NAN
+            self._diag, self._has_diag = None, True
+            if events:
+                self._count_events(True)
+            self._t_total = time.perf_counter() - t0
+            return out
+        return self._correct(self._check(a), flat, t0)
 
     def _correct(self, a: np.ndarray, flat: np.ndarray, t0: float) -> np.ndarray:
         if flat.ndim != 2 or flat.shape[0] != self.batch_size:
             raise ValueError(f"physvla: packed state of shape {flat.shape}, corrector has {self.batch_size} envs")
-        n = n_joints_from_size(flat.shape[1])
-        if self.branch_b is not None:
-            self.branch_b.check_arm(n)
+        if flat.shape[1] != self._flat_width:  # a new state width: its joint count, checked once
+            n = n_joints_from_size(flat.shape[1])
+            if self.branch_b is not None:
+                self.branch_b.check_arm(n)
+            self._flat_width, self._n, self._ip = flat.shape[1], n, self._int_params(n)
+        n = self._n
         if flat.dtype != np.float64 or not flat.flags.c_contiguous:
             flat = np.ascontiguousarray(flat, dtype=np.float64)
         self.steps += self.batch_size
@@ -308,17 +333,21 @@ class Corrector:
             out, events = correct_tick(a_raw, flat, ip, self._fp, self._idx, self._p_a, self._mem, self._lp_mem,
                                        self._absolute, self._hold0, self._last_out, self._has_last, commit,
                                        self.diag_buffer)
-            self._t_a = self._t_b = float("nan")  # not timed apart (see `profile`)
+            self._t_a = self._t_b = _NAN  # not timed apart (see `profile`)
         if commit:
             self._diag, self._has_diag = None, True
-        if events:  # the safety net acted or an env was passed through: count and warn
-            d = self.diag_buffer
-            g = d[:, D_GUARD].astype(np.int8)
-            if g.any():
-                self._count_guards(g)
-            if commit and d[:, D_STATUS].any():
-                self._count(d[:, D_STATUS].astype(np.int8))
+        if events:
+            self._count_events(commit)
         return out
+
+    def _count_events(self, commit: bool) -> None:
+        """The safety net acted or an env was passed through: count and warn."""
+        d = self.diag_buffer
+        g = d[:, D_GUARD].astype(np.int8)
+        if g.any():
+            self._count_guards(g)
+        if commit and d[:, D_STATUS].any():
+            self._count(d[:, D_STATUS].astype(np.int8))
 
     def _staged(self, a_raw: np.ndarray, flat: np.ndarray, ip: np.ndarray, commit: bool) -> tuple[np.ndarray, int]:
         """The tick's stages called one by one (the same kernels as tick.correct_tick), Branch A

@@ -328,15 +328,23 @@ class ELGate:
 
 @njit(cache=True, error_model="numpy")
 def pack_live_row(row, o, qpos, qvel, qM, bias, tau_a, tau_b, tau_c, jacp, xpos, site_xpos, qpos_ids, dof_ids,
-                  madr, parent, arm_col, points):
-    """Writes the arm's q, qdot, M, bias, tau, J_pos and the given points into a packed row.
+                  madr, parent, arm_col, points, consts, fingers):
+    """Writes the arm's q, qdot, M, bias, tau, J_pos, the given points and constants into a packed row.
 
-    o: offsets [q, qdot, M, bias, tau, J_pos] into row; tau = tau_a + tau_b + tau_c (N m) at the
-    arm dofs; M: the arm block of qM, MuJoCo's sparse joint-space inertia in the layout mj_fullM
-    reads (dof i holds M[i, i] at madr[i], then M[i, j] for j = parent(i), parent(parent(i)), ...),
-    arm_col[j] = column of dof j in the arm block, -1 off the arm; points: rows (offset, kind, id),
-    kind 0 = body (xpos), 1 = site (site_xpos), each written as 3 floats at row[offset:].
+    o: offsets [q, qdot, M, bias, tau, J_pos, gripper] into row (gripper < 0: not written); tau =
+    tau_a + tau_b + tau_c (N m) at the arm dofs; M: the arm block of qM, MuJoCo's sparse
+    joint-space inertia in the layout mj_fullM reads (dof i holds M[i, i] at madr[i], then M[i, j]
+    for j = parent(i), parent(parent(i)), ...), arm_col[j] = column of dof j in the arm block, -1
+    off the arm; points: rows (offset, kind, id), kind 0 = body (xpos), 1 = site (site_xpos), each
+    written as 3 floats at row[offset:]; consts: rows (offset, value) written as they are (after
+    the points: a constant overrides a point); fingers: qpos addresses whose |q| sum (m) is the
+    gripper opening written at row[o[6]].
     """
+    if o[6] >= 0:
+        g = 0.0
+        for k in range(fingers.shape[0]):
+            g += abs(qpos[fingers[k]])
+        row[o[6]] = g
     n = qpos_ids.shape[0]
     for k in range(n * n):
         row[o[2] + k] = 0.0  # dofs on separate branches of the tree are not coupled
@@ -363,6 +371,8 @@ def pack_live_row(row, o, qpos, qvel, qM, bias, tau_a, tau_b, tau_c, jacp, xpos,
         src = xpos if points[p, 1] == 0 else site_xpos
         for r in range(3):
             row[points[p, 0] + r] = src[points[p, 2], r]
+    for k in range(consts.shape[0]):
+        row[int(consts[k, 0])] = consts[k, 1]
 
 
 class MujocoDynamicsOracle:
@@ -413,7 +423,10 @@ class MujocoDynamicsOracle:
         self._madr = np.asarray(model.dof_Madr, dtype=np.intp)
         self._parent = np.asarray(model.dof_parentid, dtype=np.intp)
         f = field_offsets(len(self.dof_ids))
-        self._o = np.array([f[k] for k in ("q", "qdot", "M", "bias", "tau", "J_pos")], dtype=np.intp)
+        self._o = np.array([f[k] for k in ("q", "qdot", "M", "bias", "tau", "J_pos")] + [-1], dtype=np.intp)
+        self._o_grip = self._o.copy()
+        self._o_grip[6] = f["gripper"]
+        self._no_consts, self._no_fingers = np.zeros((0, 2)), np.zeros(0, dtype=np.intp)
         self._eef_point = np.array([[f["eef_pos"], 1, self.site_id] if self.site_id >= 0
                                     else [f["eef_pos"], 0, self.body_id]], dtype=np.intp)
         self._live = None  # (MjData, its field views) of the last read_live_into
@@ -436,8 +449,10 @@ class MujocoDynamicsOracle:
                                  data.qfrc_constraint if self.include_constraint else zeros), data.xpos, data.site_xpos)
         return self._live
 
-    def read_live_into(self, data: mujoco.MjData, row: np.ndarray, points: np.ndarray | None = None) -> None:
-        """Writes q, qdot, M, bias, tau, J_pos, eef_pos (and `points`) into a packed state row.
+    def read_live_into(self, data: mujoco.MjData, row: np.ndarray, points: np.ndarray | None = None,
+                       consts: np.ndarray | None = None, fingers: np.ndarray | None = None) -> None:
+        """Writes q, qdot, M, bias, tau, J_pos, eef_pos (and `points`, `consts`, the gripper
+        opening from `fingers`) into a packed state row, in one compiled call.
 
         Reads the live data's own derived quantities (qM, qfrc_bias, qfrc_actuator, body and site
         positions) with no recomputation and no write to the data: ~10 us instead of ~50 for
@@ -447,14 +462,23 @@ class MujocoDynamicsOracle:
         q and qdot, all of them mutually consistent; `read` recomputes them at the current q.
 
         points: (k, 3) int rows (offset into row, 0 body / 1 site, id) of further positions.
+        consts: (k, 2) rows (offset into row, value) written as they are (header fields).
+        fingers: qpos addresses of the gripper's finger joints; the sum of their |q| (m) is
+            written as the gripper opening (not written when None).
         """
         _, forces, xpos, site_xpos = self._views(data)
         if self.site_id >= 0:
             mujoco.mj_jacSite(self.model, data, self._jacp, None, self.site_id)
         else:
             mujoco.mj_jacBody(self.model, data, self._jacp, None, self.body_id)
-        pack_live_row(row, self._o, *forces, self._jacp, xpos, site_xpos, self.qpos_ids, self.dof_ids, self._madr,
-                      self._parent, self._arm_col, self._eef_point if points is None else points)
+        o = self._o
+        if fingers is None:
+            fingers = self._no_fingers
+        else:
+            o = self._o_grip
+        pack_live_row(row, o, *forces, self._jacp, xpos, site_xpos, self.qpos_ids, self.dof_ids, self._madr,
+                      self._parent, self._arm_col, self._eef_point if points is None else points,
+                      self._no_consts if consts is None else consts, fingers)
 
     def read(self, data: mujoco.MjData) -> dict[str, np.ndarray]:
         """q, qdot, M, bias, tau, J_pos of the arm at data's current state.

@@ -194,12 +194,13 @@ class PhysVLACorrectorStep(ProcessorStep):
     passthrough_counts: Counter = field(default_factory=Counter, init=False, repr=False)
     listeners: list = field(default_factory=list, init=False, repr=False)
     _corrector: Corrector | None = field(default=None, init=False, repr=False)
-    _last_step: np.ndarray | None = field(default=None, init=False, repr=False)
+    _last_step: np.ndarray | float | None = field(default=None, init=False, repr=False)  # (B,) or B = 1's float
     _bus: StateBus | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.cfg = PhysVLAConfig.from_dict(self.config)  # validates: unknown mode -> ValueError
         self.config = self.cfg.to_dict()
+        self._layout = self.cfg.action_layout
         # Built (and its kernels compiled / loaded) with the step, never inside the first control tick.
         self._corrector = Corrector(self.cfg, 1)
         torch.from_numpy(_to_numpy(torch.zeros(1, self.cfg.action_layout.dim))).to(dtype=torch.float32)
@@ -231,7 +232,7 @@ class PhysVLACorrectorStep(ProcessorStep):
             out = self._correct(action)
         except Exception as e:  # noqa: BLE001 - do-no-harm: the corrector never stops a rollout
             self._warn("corrector_error", f"{type(e).__name__}: {e}")
-            lay = self.cfg.action_layout
+            lay = self._layout
             out = _safe_any_shape(_to_numpy(action), lay.low, lay.high)
         new = dict(transition)
         new[TransitionKey.ACTION] = _like(out, action)
@@ -240,7 +241,7 @@ class PhysVLACorrectorStep(ProcessorStep):
     def _correct(self, action: torch.Tensor) -> np.ndarray:
         """Corrected actions (numpy, float64); every path ends inside the action bounds, finite."""
         raw = _to_numpy(action)
-        lay = self.cfg.action_layout
+        lay = self._layout
         if raw.ndim not in (2, 3) or raw.shape[-1] != lay.dim:
             self._warn("action_shape_mismatch", f"actions of shape {tuple(raw.shape)} for the layout's dim "
                        f"{lay.dim}; set --physvla.layout to the env's action layout")
@@ -259,17 +260,19 @@ class PhysVLACorrectorStep(ProcessorStep):
             self._warn("state_batch_mismatch", f"state for {flat.shape[0]} envs, action for {b}")
             return corrector.passthrough(raw, "state_batch_mismatch")
         # Episode boundaries: an env whose step counter went back (to 0 at reset) starts afresh.
-        step = _episode_step(flat)
         last = self._last_step
-        if last is None:
-            corrector.reset()
-        elif b == 1:
-            if step[0] < last[0]:
+        if b == 1:  # a float compare instead of array work
+            step = float(flat[0, _EPISODE_STEP])
+            if last is None or np.ndim(last) != 0 or step < last:
                 corrector.reset()
         else:
-            new_ep = step < last
-            if new_ep.any():
-                corrector.reset(np.flatnonzero(new_ep))
+            step = _episode_step(flat)
+            if last is None or np.ndim(last) == 0:
+                corrector.reset()
+            else:
+                new_ep = step < last
+                if new_ep.any():
+                    corrector.reset(np.flatnonzero(new_ep))
         self._last_step = step
 
         if not self.listeners:

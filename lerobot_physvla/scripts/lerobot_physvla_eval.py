@@ -59,13 +59,13 @@ def _write_report(out: Path, recorder, pcfg, plots: int = 10) -> None:
     rows, drawn = [], []
     eps = pcfg.eps_nm if pcfg.mode == "phys_el" and pcfg.el_mode != "off" else None
     for k, r in enumerate(records):
-        raw, cor = np.asarray(r["raw_actions"], float), np.asarray(r["corrected_actions"], float)
-        phase = np.asarray(r["phase"], int)
-        changed = int((np.abs(cor - raw).max(axis=1) > 0).sum()) if len(raw) else 0
+        phase = np.repeat([report.PHASE_INDEX[name] for name, _ in r["phase_timeline"]],
+                          [frames for _, frames in r["phase_timeline"]]).astype(int)
         rows.append(report.episode_row(r["episode"], f"task {r['task_id']}", r["steps"], r["success"], phase,
-                                       report.corrections_by_phase(raw, cor, phase, lay), changed,
-                                       r["overhead_us_p50"], r["passthrough"]))
-        if k < plots and len(raw):
+                                       r.get("corrections_by_phase", {}), r["frames_changed"], r["overhead_us_p50"],
+                                       r["passthrough"]))
+        if k < plots and r.get("raw_actions"):  # per-step arrays: the first episodes (EpisodeRecorder.keep_steps)
+            raw, cor = np.asarray(r["raw_actions"], float), np.asarray(r["corrected_actions"], float)
             r_el = np.array([np.nan if v is None else v for v in r["r_el"]], float)
             drawn.append((f"episode {r['episode']} (task {r['task_id']})", report.plot_episode(
                 out / "physvla_plots" / f"episode_{r['episode']:04d}.png", raw, cor, phase, r_el, eps, lay,
@@ -104,8 +104,10 @@ def activate_eval(argv: list[str]) -> None:
 
     def attach(step):  # record every step of the evaluation (also a checkpoint's own corrector)
         if getattr(step, "_physvla_recorder", None) is None:
+            lay = step.cfg.action_layout
             step._physvla_recorder = EpisodeRecorder(
-                save_states=os.environ.get("PHYSVLA_SAVE_STATES") == "1", gripper_index=step.cfg.action_layout.gripper
+                save_states=os.environ.get("PHYSVLA_SAVE_STATES") == "1", gripper_index=lay.gripper, layout=lay,
+                keep_steps=None if os.environ.get("PHYSVLA_RECORD_STEPS") == "1" else 10,
             )
             step.listeners.append(step._physvla_recorder)
         return step

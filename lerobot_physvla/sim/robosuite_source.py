@@ -50,7 +50,6 @@ class RobosuiteStateSource:
     def __init__(self, env, obj_name: str | None = None, target_name: str | None = None, robot_index: int = 0,
                  target_xyz=None):
         self.env = env
-        self.target_xyz = None if target_xyz is None else np.asarray(target_xyz, dtype=np.float64)
         if obj_name is None or (target_name is None and target_xyz is None):
             g_obj, g_tgt = goal_object_and_target(env)
             obj_name = obj_name or g_obj
@@ -66,11 +65,17 @@ class RobosuiteStateSource:
         self._obj = self._resolve(obj_name)
         self._tgt = None if target_name is None else self._resolve(target_name)
         self.dt = 1.0 / float(env.control_freq)
-        self.obj_rest_z = float("nan")
-        self.episode_step = 0
-        self._row = np.zeros(packed_size(self.oracle.n_joints))
+        self._size = packed_size(self.oracle.n_joints)
         self.failures: Counter = Counter()  # exception type -> count of failed reads
         f = self._f = field_offsets(self.oracle.n_joints)
+        # header fields the compiled read writes as they are: valid, episode_step, dt, obj_rest_z,
+        # then the fixed target point (3) when there is one (rows (offset, value), see pack_live_row)
+        self._header = np.array([[f["valid"], 0.0], [f["episode_step"], 0.0], [f["dt"], self.dt],
+                                 [f["obj_rest_z"], np.nan]] + [[f["target_pos"] + k, 0.0] for k in range(3)])
+        self._consts = self._header[:4]
+        self.obj_rest_z = float("nan")
+        self.episode_step = 0
+        self.target_xyz = target_xyz
         kind = {"body": 0, "site": 1}
         points = [self.oracle._eef_point[0], [f["obj_pos"], kind[self._obj[0]], self._obj[1]]]
         if self._tgt is not None:
@@ -100,6 +105,34 @@ class RobosuiteStateSource:
         known = sorted(set(body_ids) | set(sites)) or [m.body(i).name for i in range(m.nbody)]
         raise ValueError(f"physvla: {name!r} names no object, region or body of this scene; known: {known}")
 
+    @property
+    def episode_step(self) -> int:
+        return int(self._header[1, 1])
+
+    @episode_step.setter
+    def episode_step(self, value: int) -> None:
+        self._header[1, 1] = value
+
+    @property
+    def obj_rest_z(self) -> float:
+        return float(self._header[3, 1])
+
+    @obj_rest_z.setter
+    def obj_rest_z(self, value: float) -> None:
+        self._header[3, 1] = value
+        self._header[0, 1] = 1.0 if np.isfinite(value) else 0.0  # valid once the resting height is known
+
+    @property
+    def target_xyz(self) -> np.ndarray | None:
+        return self._target_xyz
+
+    @target_xyz.setter
+    def target_xyz(self, value) -> None:
+        self._target_xyz = None if value is None else np.asarray(value, dtype=np.float64).reshape(3)
+        if self._target_xyz is not None:
+            self._header[4:, 1] = self._target_xyz
+        self._consts = self._header if self._target_xyz is not None else self._header[:4]
+
     def _pos(self, data: mujoco.MjData, ref: tuple[str, int]) -> np.ndarray:
         kind, i = ref
         return data.xpos[i] if kind == "body" else data.site_xpos[i]
@@ -111,7 +144,7 @@ class RobosuiteStateSource:
 
     def step(self) -> None:
         """Call once per executed control step."""
-        self.episode_step += 1
+        self._header[1, 1] += 1.0
 
     def read_packed(self) -> np.ndarray:
         """One env's state as a flat float64 vector (PhysState.pack layout), a new array. Never
@@ -119,26 +152,18 @@ class RobosuiteStateSource:
 
         Read from the live MjData as the simulator left it (`MujocoDynamicsOracle.read_live_into`:
         positions, M, bias and tau one 2 ms physics substep older than q and qdot), in one
-        compiled call; nothing is recomputed and the simulation is never written.
+        compiled call that also writes the header (valid, step, dt, gripper opening, resting
+        height, a fixed target); nothing is recomputed and the simulation is never written.
         """
-        row, f = self._row, self._f
+        row = np.zeros(self._size)
         try:
-            data = self.env.sim.data._data
-            self.oracle.read_live_into(data, row, self._points)
-            qpos = self.oracle._live[1][0]
-            row[f["valid"]] = 1.0 if np.isfinite(self.obj_rest_z) else 0.0
-            row[f["episode_step"]] = self.episode_step
-            row[f["dt"]] = self.dt
-            row[f["gripper"]] = sum(abs(float(qpos[i])) for i in self._finger_qpos)  # finger opening, m
-            row[f["obj_rest_z"]] = self.obj_rest_z
-            if self.target_xyz is not None:  # a fixed world point overrides the target body
-                row[f["target_pos"] : f["target_pos"] + 3] = self.target_xyz
-            return row.copy()
+            self.oracle.read_live_into(self.env.sim.data._data, row, self._points, self._consts, self._finger_qpos)
+            return row
         except Exception as e:  # noqa: BLE001 - do-no-harm: an unreadable state disables correction
             self.failures[type(e).__name__] += 1
             if sum(self.failures.values()) == 1:
                 warnings.warn(f"physvla: reading the sim state failed ({e!r}); correction is off for this step", RuntimeWarning)
-            return np.zeros_like(self._row)
+            return np.zeros(self._size)
 
     def read(self) -> PhysState:
         return PhysState.unpack(self.read_packed())
