@@ -147,6 +147,15 @@ class ArmModel:
             raise ArmError(f"physvla: arm {spec.name!r}: {e}") from None
         self.n_joints = len(spec.joints)
         self._data = mujoco.MjData(self.model)
+        self._kin = mujoco.MjData(self.model)  # forward kinematics only (eef_at)
+
+    def eef_at(self, q_rad: np.ndarray) -> np.ndarray:
+        """End-effector position (m, model frame) at arm joint positions q (rad): kinematics only."""
+        d = self._kin
+        d.qpos[self.oracle.qpos_ids] = q_rad
+        mujoco.mj_kinematics(self.model, d)
+        o = self.oracle
+        return (d.site_xpos[o.site_id] if o.site_id >= 0 else d.xpos[o.body_id]).copy()
 
     def dynamics(self, q_rad: np.ndarray, qdot_rad_s: np.ndarray) -> dict[str, np.ndarray]:
         """q, qdot, M (kg m^2), bias (N m), J_pos (m/rad) and eef_pos (m, model frame) at the given arm

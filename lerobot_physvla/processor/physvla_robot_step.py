@@ -1,0 +1,158 @@
+"""The corrector on a real arm: a step for `lerobot-rollout`'s robot action processor.
+
+`lerobot-rollout` sends every action through `robot_action_processor((action_dict, raw_observation))`
+(lerobot/rollout/strategies/core.py). This step reads the arm's joint positions from the raw
+observation, computes s_t with the arm's MuJoCo model (robots/joint_state.py), reads the
+joint-target action as the Cartesian move it proposes (robots/joint_targets.py), corrects it, and
+writes the corrected joint and gripper targets back into the action dict. Keys the correction
+did not change are returned exactly as the policy sent them.
+
+Do-no-harm: on its first call the step checks the observation and the action carry every key the
+arm needs and raises a one-line ArmError otherwise (no action has reached the robot yet); after
+that it never raises. A non-finite target is replaced by the joint's current reading (hold
+still), an unreadable state or any error passes the policy's action through; each is counted in
+`passthrough_counts` and warned once.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from lerobot.configs import PipelineFeatureType, PolicyFeature
+from lerobot.lerobot_types import EnvTransition, TransitionKey
+from lerobot.processor.pipeline import ProcessorStep, ProcessorStepRegistry
+
+from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, PhysVLAConfig
+from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.core.state import field_offsets
+from lerobot_physvla.processor.physvla_processor import _unregister_name_for_saving
+from lerobot_physvla.robots.arms import ArmError, ArmModel
+from lerobot_physvla.robots.joint_state import JointStateSource
+from lerobot_physvla.robots.joint_targets import VIRTUAL, JointTargetAdapter
+
+
+@_unregister_name_for_saving
+@ProcessorStepRegistry.register("physvla_robot_corrector")
+@dataclass
+class PhysVLARobotActionStep(ProcessorStep):
+    """Corrects a robot arm's joint-target action dict (lerobot-rollout's robot action processor).
+
+    Attributes:
+        arm: a known arm (robots/arms.py ARMS: so101, panda, or one registered).
+        fps: the control rate, Hz (dt = 1 / fps for the joint velocities).
+        object_xyz, target_xyz: fixed object / target points in the arm model's frame, m; or
+        object_key, target_key: raw-observation keys holding them (a perception step fills them).
+        config: PhysVLAConfig fields (default: the shipped default preset); the action layout is
+            the virtual Cartesian one (robots/joint_targets.py) and Branch B weights task-space.
+        velocity_cutoff_hz: low-pass cutoff of the joint velocities, Hz (None: unfiltered).
+    """
+
+    arm: str = "so101"
+    fps: float = 30.0
+    object_xyz: list[float] | None = None
+    target_xyz: list[float] | None = None
+    object_key: str | None = None
+    target_key: str | None = None
+    config: dict[str, Any] = field(default_factory=lambda: PRESETS[DEFAULT_PRESET].to_dict())
+    velocity_cutoff_hz: float | None = 5.0
+    passthrough_counts: Counter = field(default_factory=Counter, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        model = ArmModel(self.arm)  # unknown arm, model, joints: ArmError now
+        self.source = JointStateSource(model, 1.0 / self.fps, self.object_xyz, self.target_xyz, self.object_key,
+                                       self.target_key, self.velocity_cutoff_hz)
+        self.adapter = JointTargetAdapter(model)
+        self.cfg = PhysVLAConfig.from_dict(self.config).replace(layout=VIRTUAL, weighting="task_space")
+        self.corrector = Corrector(self.cfg, 1)
+        spec = model.spec
+        self._keys = [f"{m}.pos" for m in spec.motors]
+        self._grip = None if spec.gripper_motor is None else f"{spec.gripper_motor}.pos"
+        self._to_rad = spec.to_radians
+        f = field_offsets(model.n_joints)
+        self._eef, self._valid, self._j, self._n = f["eef_pos"], f["valid"], f["J_pos"], model.n_joints
+        self._checked = False
+
+    def _warn(self, why: str, detail: str) -> None:
+        self.passthrough_counts[why] += 1
+        if self.passthrough_counts[why] == 1:
+            warnings.warn(f"physvla: {why} ({detail}); see passthrough_counts", RuntimeWarning, stacklevel=4)
+
+    def _check(self, action: dict, observation: dict) -> None:
+        self.source.check(observation)
+        need = self._keys + ([self._grip] if self._grip else [])
+        missing = [k for k in need if k not in action]
+        if missing:
+            raise ArmError(f"physvla: arm {self.arm!r} corrects {missing}, which the policy's action lacks (it has "
+                           f"{sorted(action)}); map the robot's motors in ArmSpec.motors")
+        self._checked = True
+
+    def __call__(self, transition: EnvTransition) -> EnvTransition:
+        action = transition.get(TransitionKey.ACTION)
+        observation = transition.get(TransitionKey.OBSERVATION)
+        if not isinstance(action, dict) or not isinstance(observation, dict):
+            return transition
+        if not self._checked:
+            self._check(action, observation)  # before any action reaches the robot: may raise
+        try:
+            out = self._correct(action, observation)
+        except Exception as e:  # noqa: BLE001 - do-no-harm: the corrector never stops a rollout
+            self._warn("corrector_error", f"{type(e).__name__}: {e}")
+            out = self._held(action, observation)
+        new = dict(transition)
+        new[TransitionKey.ACTION] = out
+        return new
+
+    def _held(self, action: dict, observation: dict) -> dict:
+        """The policy's action with every non-finite target replaced by the joint's current reading."""
+        out = dict(action)
+        for k in self._keys + ([self._grip] if self._grip else []):
+            try:
+                ok = math.isfinite(float(out[k]))
+            except (TypeError, ValueError, KeyError):
+                ok = False
+            if not ok:
+                out[k] = float(observation.get(k, 0.0))
+        return out
+
+    def _correct(self, action: dict, observation: dict) -> dict:
+        q_t = np.array([float(action[k]) for k in self._keys]) * self._to_rad
+        g_r = float(action[self._grip]) if self._grip else None
+        if not np.isfinite(q_t).all() or (g_r is not None and not math.isfinite(g_r)):
+            self._warn("held_nonfinite_action", "a non-finite joint target is replaced by the joint's reading")
+            return self._held(action, observation)
+        row = self.source.read_packed(observation)
+        if row[self._valid] != 1.0:
+            self._warn("invalid_state", "the arm's state could not be read; the policy's action passes")
+            return dict(action)
+        a_raw = self.adapter.to_virtual(q_t, g_r, row[self._eef : self._eef + 3])
+        a_out = self.corrector.correct_packed(a_raw[None], row[None])[0]
+        j_pos = row[self._j : self._j + 3 * self._n].reshape(3, self._n)
+        q_new, g_new = self.adapter.from_virtual(a_out, a_raw, q_t, g_r, j_pos)
+        out = dict(action)
+        if q_new is not None:
+            for k, v in zip(self._keys, q_new / self._to_rad):
+                out[k] = float(v)
+        if g_new is not None:
+            out[self._grip] = float(np.clip(g_new, 0.0, self.source.arm.spec.gripper_full_scale))
+        return out
+
+    def reset(self) -> None:
+        """An episode starts: the state source and the corrector's memory start afresh."""
+        self.source.reset()
+        self.corrector.reset()
+
+    def get_config(self) -> dict[str, Any]:
+        return {"arm": self.arm, "fps": self.fps, "object_xyz": self.object_xyz, "target_xyz": self.target_xyz,
+                "object_key": self.object_key, "target_key": self.target_key, "config": self.config,
+                "velocity_cutoff_hz": self.velocity_cutoff_hz}
+
+    def transform_features(
+        self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]
+    ) -> dict[PipelineFeatureType, dict[str, PolicyFeature]]:
+        return features
