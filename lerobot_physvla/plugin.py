@@ -2,8 +2,9 @@
 
 lerobot imports every installed distribution named `lerobot_env_*` at the start of its console
 scripts; ours (`lerobot_env_physvla`) calls `activate()`, which
-- registers the `libero_physvla` env type, the two processor steps and the `physvla_scripted`
-  policy type (always);
+- registers the `libero_physvla` env type, the processor steps (env: capture, policy: corrector,
+  robot: joint-target corrector), the `physvla_scripted` policy type and the `physvla_sim_so101`
+  robot type (always);
 - in `lerobot-eval` (and `lerobot-physvla-eval`) only: applies `--policy.postprocess` and
   `--physvla.*` (see `scripts/lerobot_physvla_eval.py`). No flag leaves lerobot untouched.
 PHYSVLA_DISABLE=1 turns the plugin off entirely.
@@ -27,7 +28,8 @@ def activate(argv: list[str] | None = None) -> None:
     # registers the env type, the processor steps and the policy type
     from lerobot_physvla.envs import libero_physvla  # noqa: F401
     from lerobot_physvla.policies import physvla_scripted  # noqa: F401
-    from lerobot_physvla.processor import physvla_processor  # noqa: F401
+    from lerobot_physvla.processor import physvla_processor, physvla_robot_step  # noqa: F401
+    from lerobot_physvla.robot_types import physvla_sim_so101  # noqa: F401  (robot type physvla_sim_so101)
 
     argv = sys.argv if argv is None else argv
     if argv and _is_lerobot_eval(argv[0]):

@@ -19,6 +19,7 @@ RANK = {
     "core": 0,
     "sim": 1, "robots": 1,
     "compat": 2, "flags": 2, "diagnostics": 2, "metrics": 2, "report": 2, "processor": 2, "envs": 2, "policies": 2, "replay": 2,
+    "robot_types": 2,
     "scripts": 3,
     "plugin": 4,
 }

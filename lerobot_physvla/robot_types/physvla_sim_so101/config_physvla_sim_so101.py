@@ -1,0 +1,25 @@
+"""Configuration of the MuJoCo-simulated SO-101 (robot type `physvla_sim_so101`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from lerobot.robots.config import RobotConfig
+
+
+@RobotConfig.register_subclass("physvla_sim_so101")
+@dataclass
+class SimSO101Config(RobotConfig):
+    """A simulated SO-101 with a block on the floor, driven like lerobot's so101_follower.
+
+    Attributes:
+        fps: control rate, Hz: each `send_action` advances the physics by 1 / fps s.
+        block_xyz: where the block starts, m (model frame; the arm's base at the origin).
+        joint_noise_deg: std of Gaussian noise added to each joint reading, degrees (0: none).
+        seed: seed of the reading noise.
+    """
+
+    fps: int = 30
+    block_xyz: list[float] = field(default_factory=lambda: [0.3, 0.0, 0.02])
+    joint_noise_deg: float = 0.0
+    seed: int = 0

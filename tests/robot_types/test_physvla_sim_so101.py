@@ -1,0 +1,57 @@
+"""The MuJoCo-simulated SO-101 behind LeRobot's Robot interface, and the corrector on the code path
+that drives a real arm: robot observation -> policy action -> robot action processor -> send_action."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lerobot.processor import RobotProcessorPipeline
+from lerobot.processor.converters import robot_action_observation_to_transition, transition_to_robot_action
+from lerobot.robots.utils import make_robot_from_config
+
+from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
+from lerobot_physvla.robot_types.physvla_sim_so101 import SimSO101, SimSO101Config
+
+ARM = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
+
+
+def test_lerobot_builds_it_from_its_config_and_its_servos_track_targets(tmp_path):
+    robot = make_robot_from_config(SimSO101Config(calibration_dir=tmp_path))
+    assert isinstance(robot, SimSO101)
+    robot.connect()
+    assert set(robot.action_features) == {f"{m}.pos" for m in (*ARM, "gripper")}
+    target = {"shoulder_pan.pos": 15.0, "shoulder_lift.pos": -10.0, "elbow_flex.pos": 20.0, "wrist_flex.pos": 5.0,
+              "wrist_roll.pos": 0.0, "gripper.pos": 100.0}
+    for _ in range(60):  # 2 s at 30 Hz
+        robot.send_action(target)
+    obs = robot.get_observation()
+    for m in ARM:
+        assert abs(obs[f"{m}.pos"] - target[f"{m}.pos"]) < 3.0, (m, obs)
+    assert obs["gripper.pos"] > 90 and robot.steps == 60
+    np.testing.assert_allclose(obs["block.pos"], [0.3, 0.0, 0.02], atol=1e-3)
+
+
+def _rollout(robot, step, policy_action, ticks):
+    proc = RobotProcessorPipeline(steps=[step], to_transition=robot_action_observation_to_transition,
+                                  to_output=transition_to_robot_action)
+    robot.connect()
+    for _ in range(ticks):  # what lerobot-rollout does each tick (send_next_action)
+        obs = robot.get_observation()
+        robot.send_action(proc((dict(policy_action), obs)))
+    return robot.get_observation()
+
+
+def test_a_premature_close_is_held_open_on_the_simulated_arm(tmp_path):
+    """A policy that closes the gripper far from the block: the servos receive 'open', and the
+    simulated gripper stays open; without the corrector it closes."""
+    close = {**{f"{m}.pos": 0.0 for m in ARM}, "gripper.pos": 0.0}
+    cfg = SimSO101Config(calibration_dir=tmp_path, block_xyz=[0.1, 0.3, 0.02])
+    corrected, raw = SimSO101(cfg), SimSO101(cfg)
+    step = PhysVLARobotActionStep(arm="so101", fps=30, object_key="block.pos", target_xyz=[0.3, -0.2, 0.0])
+    end = _rollout(corrected, step, close, 30)
+    assert corrected.last_action["gripper.pos"] == 100.0 and end["gripper.pos"] > 90
+    assert all(corrected.last_action[f"{m}.pos"] == 0.0 for m in ARM)  # the arm's targets as the policy sent
+    assert not step.passthrough_counts
+    for _ in range(30):
+        raw.send_action(close) if raw.is_connected else raw.connect()
+    assert raw.get_observation()["gripper.pos"] < 10  # the same action, uncorrected, closes it
