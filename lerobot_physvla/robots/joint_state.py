@@ -30,7 +30,8 @@ class JointStateSource:
         arm: the arm's model.
         dt: control period, s.
         object_xyz, target_xyz: fixed object / target positions in the model's frame, m, or None.
-        object_key, target_key: observation keys holding them (3 floats, m, model frame), or None.
+        object_key, target_key: observation keys holding them (3 floats, m, model frame), or the
+            stem of three float keys "<key>.x", "<key>.y", "<key>.z" (lerobot robots report floats), or None.
         velocity_cutoff_hz: cutoff of the first-order low-pass on the finite-difference joint
             velocity, Hz (None: unfiltered).
         obj_rest_z: the object's resting height, m: its height at the episode's first read.
@@ -72,7 +73,8 @@ class JointStateSource:
         """Raises a one-line ArmError when the observation lacks a key this arm needs (call it on the
         first observation, before the robot moves)."""
         need = self._keys + ([self._grip_key] if self._grip_key else []) + [
-            k for k in (self.object_key, self.target_key) if k is not None]
+            k if k in observation else f"{k}.{c}" for k in (self.object_key, self.target_key) if k is not None
+            for c in ("x",) + (("y", "z") if k not in observation else ())]
         missing = [k for k in need if k not in observation]
         if missing:
             have = sorted(k for k in observation if isinstance(k, str))
@@ -80,7 +82,11 @@ class JointStateSource:
                            f"lacks (it has {have}); map the robot's motors in ArmSpec.motors")
 
     def _point(self, fixed, key, observation) -> np.ndarray:
-        return fixed if key is None else np.asarray(observation[key], dtype=np.float64).reshape(3)
+        if key is None:
+            return fixed
+        if key in observation:
+            return np.asarray(observation[key], dtype=np.float64).reshape(3)
+        return np.array([float(observation[f"{key}.{c}"]) for c in "xyz"])
 
     def read_packed(self, observation: dict) -> np.ndarray:
         """s_t as a new packed row. Never raises: a failed read (a missing or non-numeric key, a

@@ -28,7 +28,8 @@ def test_lerobot_builds_it_from_its_config_and_its_servos_track_targets(tmp_path
     for m in ARM:
         assert abs(obs[f"{m}.pos"] - target[f"{m}.pos"]) < 3.0, (m, obs)
     assert obs["gripper.pos"] > 90 and robot.steps == 60
-    np.testing.assert_allclose(obs["block.pos"], [0.3, 0.0, 0.02], atol=1e-3)
+    np.testing.assert_allclose([obs["block.x"], obs["block.y"], obs["block.z"]], [0.3, 0.0, 0.02], atol=1e-3)
+    assert all(t is float for t in robot.observation_features.values())  # no tuple: lerobot would read a camera
 
 
 def _rollout(robot, step, policy_action, ticks):
@@ -47,7 +48,7 @@ def test_a_premature_close_is_held_open_on_the_simulated_arm(tmp_path):
     close = {**{f"{m}.pos": 0.0 for m in ARM}, "gripper.pos": 0.0}
     cfg = SimSO101Config(calibration_dir=tmp_path, block_xyz=[0.1, 0.3, 0.02])
     corrected, raw = SimSO101(cfg), SimSO101(cfg)
-    step = PhysVLARobotActionStep(arm="so101", fps=30, object_key="block.pos", target_xyz=[0.3, -0.2, 0.0])
+    step = PhysVLARobotActionStep(arm="so101", fps=30, object_key="block", target_xyz=[0.3, -0.2, 0.0])
     end = _rollout(corrected, step, close, 30)
     assert corrected.last_action["gripper.pos"] == 100.0 and end["gripper.pos"] > 90
     assert all(corrected.last_action[f"{m}.pos"] == 0.0 for m in ARM)  # the arm's targets as the policy sent

@@ -53,6 +53,13 @@ def test_object_and_target_from_observation_keys():
     st = PhysState.unpack(src.read_packed(obs))
     np.testing.assert_allclose(st.obj_pos[0], (0.3, 0.0, 0.05))
     np.testing.assert_allclose(st.target_pos[0], (0.1, 0.2, 0.0))
+    stems = JointStateSource("so101", dt=0.05, object_key="block", target_xyz=(0, 0, 0))
+    obs = so101_obs(np.zeros(5), **{"block.x": 0.3, "block.y": -0.1, "block.z": 0.02})
+    stems.check(obs)
+    np.testing.assert_allclose(PhysState.unpack(stems.read_packed(obs)).obj_pos[0], (0.3, -0.1, 0.02))
+    del obs["block.y"]
+    with pytest.raises(ArmError, match=r"reads \['block.y'\]"):
+        stems.check(obs)
 
 
 def test_missing_joints_are_named_before_the_robot_moves():

