@@ -52,9 +52,15 @@ def _convert(name: str, value: str, hint) -> object:
     return value
 
 
-def split_argv(argv: list[str]) -> tuple[str | None, dict[str, object], list[str]]:
-    """(postprocess choice or None, PhysVLAConfig overrides, argv without our flags)."""
-    types = _field_types()
+# the flags of the robot-side step (lerobot-rollout): PhysVLARobotActionStep's fields
+ROBOT_FLAGS: dict[str, object] = {"arm": str, "object_xyz": tuple[float, ...], "target_xyz": tuple[float, ...],
+                                  "object_key": str, "target_key": str, "velocity_cutoff_hz": float}
+
+
+def split_argv(argv: list[str], robot: bool = False) -> tuple[str | None, dict[str, object], list[str]]:
+    """(postprocess choice or None, PhysVLAConfig overrides (and, with robot, ROBOT_FLAGS values),
+    argv without our flags)."""
+    types = {**_field_types(), **(ROBOT_FLAGS if robot else {})}
     post, overrides, rest = None, {}, []
     it = iter(range(len(argv)))
     skip = False

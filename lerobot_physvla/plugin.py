@@ -6,7 +6,8 @@ scripts; ours (`lerobot_env_physvla`) calls `activate()`, which
   robot: joint-target corrector), the `physvla_scripted` policy type and the `physvla_sim_so101`
   robot type (always);
 - in `lerobot-eval` (and `lerobot-physvla-eval`) only: applies `--policy.postprocess` and
-  `--physvla.*` (see `scripts/lerobot_physvla_eval.py`). No flag leaves lerobot untouched.
+  `--physvla.*` (see `scripts/lerobot_physvla_eval.py`); in `lerobot-rollout`: the same flags plus
+  the arm's (`scripts/lerobot_physvla_rollout.py`). No flag leaves lerobot untouched.
 PHYSVLA_DISABLE=1 turns the plugin off entirely.
 """
 
@@ -32,6 +33,10 @@ def activate(argv: list[str] | None = None) -> None:
     from lerobot_physvla.robot_types import physvla_sim_so101  # noqa: F401  (robot type physvla_sim_so101)
 
     argv = sys.argv if argv is None else argv
+    if argv and Path(argv[0]).name in ("lerobot-rollout", "lerobot_rollout.py"):
+        from lerobot_physvla.scripts.lerobot_physvla_rollout import activate_rollout
+
+        activate_rollout(argv)
     if argv and _is_lerobot_eval(argv[0]):
         from lerobot_physvla.scripts.lerobot_physvla_eval import activate_eval
 

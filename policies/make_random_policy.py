@@ -5,7 +5,9 @@
 --inputs state (default): what the `libero_physvla` env gives with --env.cameras=false,
 observation.state (8: eef xyz, axis-angle, 2 finger joints) and observation.environment_state
 (6: object xyz, target xyz). --inputs image: observation.state and LIBERO's agent-view camera
-(observation.images.image, 3x360x360), for plain `--env.type=libero`. Output: the 7-D action. Normalisation stats are identity
+(observation.images.image, 3x360x360), for plain `--env.type=libero`. Output: the 7-D action.
+--inputs so101: the simulated SO-101 (robot type physvla_sim_so101, blank_camera=true): its six
+motor positions and its blank camera, the 6-D joint-target action, for lerobot-rollout. Normalisation stats are identity
 (mean 0, std 1; min -1, max 1), so the processors are complete. Used by the tests and docs to
 exercise the real lerobot-eval path without any hub download.
 """
@@ -25,6 +27,13 @@ INPUTS = {
         "observation.state": PolicyFeature(type=FeatureType.STATE, shape=(8,)),
         "observation.environment_state": PolicyFeature(type=FeatureType.ENV, shape=(6,)),
     },
+    # the simulated SO-101 (robot type physvla_sim_so101 with blank_camera=true): 6 motor positions
+    # (lerobot-rollout routes only ".pos" readings to the policy) and its blank 8x8 camera (ACT
+    # needs an image or an environment state)
+    "so101": {
+        "observation.state": PolicyFeature(type=FeatureType.STATE, shape=(6,)),
+        "observation.images.front": PolicyFeature(type=FeatureType.VISUAL, shape=(3, 8, 8)),
+    },
     "image": {
         "observation.state": PolicyFeature(type=FeatureType.STATE, shape=(8,)),
         "observation.images.image": PolicyFeature(type=FeatureType.VISUAL, shape=(3, 360, 360)),
@@ -38,11 +47,18 @@ SMALL = {
 }
 
 
-def identity_stats() -> dict:
+ACTION_DIM = {"state": 7, "image": 7, "so101": 6}
+
+
+def identity_stats(inputs: str = "state") -> dict:
     stats = {}
-    for key, dim in (("observation.state", 8), ("observation.environment_state", 6), ("action", 7)):
+    dims = {k: f.shape[0] for k, f in INPUTS[inputs].items() if f.type != FeatureType.VISUAL}
+    for key, dim in (*dims.items(), ("action", ACTION_DIM[inputs])):
         stats[key] = {"mean": torch.zeros(dim), "std": torch.ones(dim), "min": -torch.ones(dim), "max": torch.ones(dim)}
     shape = (3, 1, 1)
+    for key in (k for k, f in INPUTS[inputs].items() if f.type == FeatureType.VISUAL and k != "observation.images.image"):
+        stats[key] = {"mean": torch.zeros(shape), "std": torch.ones(shape), "min": torch.zeros(shape),
+                      "max": torch.ones(shape)}
     stats["observation.images.image"] = {"mean": torch.zeros(shape), "std": torch.ones(shape),
                                          "min": torch.zeros(shape), "max": torch.ones(shape)}
     return stats
@@ -57,8 +73,14 @@ def main() -> None:
     args = ap.parse_args()
     torch.manual_seed(args.seed)
     cfg = make_policy_config(args.type, device="cpu", input_features=dict(INPUTS[args.inputs]), **SMALL[args.type])
-    policy = make_policy(cfg, env_cfg=LiberoEnv(task="libero_spatial"))
-    pre, post = make_pre_post_processors(cfg, dataset_stats=identity_stats())
+    if args.inputs == "so101":  # no env config: the robot's 6 joint targets are the action
+        from lerobot.policies.factory import get_policy_class
+
+        cfg.output_features = {"action": PolicyFeature(type=FeatureType.ACTION, shape=(ACTION_DIM["so101"],))}
+        policy = get_policy_class(cfg.type)(cfg)
+    else:
+        policy = make_policy(cfg, env_cfg=LiberoEnv(task="libero_spatial"))
+    pre, post = make_pre_post_processors(cfg, dataset_stats=identity_stats(args.inputs))
     policy.save_pretrained(args.out)
     pre.save_pretrained(args.out)
     post.save_pretrained(args.out)

@@ -17,9 +17,15 @@ class SimSO101Config(RobotConfig):
         block_xyz: where the block starts, m (model frame; the arm's base at the origin).
         joint_noise_deg: std of Gaussian noise added to each joint reading, degrees (0: none).
         seed: seed of the reading noise.
+        blank_camera: also report a camera "front" (8x8 RGB, all black, not rendered): policies that
+            need an image input (ACT, Diffusion) then run on this robot.
+        action_log: a file to which every action the servos receive is appended (one JSON line per
+            send_action), or None.
     """
 
     fps: int = 30
     block_xyz: list[float] = field(default_factory=lambda: [0.3, 0.0, 0.02])
     joint_noise_deg: float = 0.0
     seed: int = 0
+    blank_camera: bool = False
+    action_log: str | None = None

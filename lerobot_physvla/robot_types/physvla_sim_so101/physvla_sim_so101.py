@@ -6,11 +6,13 @@ Observations and actions use lerobot's so101_follower keys and units: "<motor>.p
 the five arm joints, "gripper.pos" 0 (closed) .. 100 (open) over the gripper joint's range; the
 observation also carries "block.x", "block.y", "block.z" (the block's position, m; float features,
 since lerobot reads a tuple-shaped feature as a camera) for a perception-less setup.
-`send_action` sets the servo targets and advances the physics by 1 / fps s; `last_action` holds
-the action the servos actually received (what a test checks against the policy's).
+`send_action` sets the servo targets and advances the physics by 1 / fps s; `last_action` (and,
+with `action_log`, a JSON-lines file) holds what the servos actually received.
 """
 
 from __future__ import annotations
+
+import json
 
 import mujoco
 import numpy as np
@@ -20,6 +22,7 @@ from lerobot.robots.robot import Robot
 from lerobot_physvla.robots.arms import ARMS, resolve_mjcf
 from lerobot_physvla.robot_types.physvla_sim_so101.config_physvla_sim_so101 import SimSO101Config
 
+BLANK = np.zeros((8, 8, 3), np.uint8)  # the blank camera's frame (blank_camera)
 MOTORS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")
 
 
@@ -55,7 +58,8 @@ class SimSO101(Robot):
 
     @property
     def observation_features(self) -> dict:
-        return {**{f"{k}.pos": float for k in MOTORS}, **{f"block.{c}": float for c in "xyz"}}
+        cam = {"front": BLANK.shape} if self.config.blank_camera else {}
+        return {**{f"{k}.pos": float for k in MOTORS}, **{f"block.{c}": float for c in "xyz"}, **cam}
 
     @property
     def action_features(self) -> dict:
@@ -95,6 +99,8 @@ class SimSO101(Robot):
         obs["gripper.pos"] = self._gripper_reading(q[-1])
         for c, v in zip("xyz", self.data.xpos[self._block]):
             obs[f"block.{c}"] = float(v)
+        if self.config.blank_camera:
+            obs["front"] = BLANK.copy()
         return obs
 
     def send_action(self, action: dict) -> dict:
@@ -106,6 +112,9 @@ class SimSO101(Robot):
         mujoco.mj_step(self.model, self.data, nstep=self._substeps)
         self.steps += 1
         self.last_action = {f"{k}.pos": float(v) for k, v in zip(MOTORS, target)}
+        if self.config.action_log:
+            with open(self.config.action_log, "a") as f:
+                f.write(json.dumps(self.last_action) + "\n")
         return dict(self.last_action)
 
     def disconnect(self) -> None:
