@@ -51,6 +51,7 @@ class PhysVLARobotActionStep(ProcessorStep):
         config: PhysVLAConfig fields (default: the shipped default preset); the action layout is
             the virtual Cartesian one (robots/joint_targets.py) and Branch B weights task-space.
         velocity_cutoff_hz: low-pass cutoff of the joint velocities, Hz (None: unfiltered).
+        state_delay_s: the readings' age when they arrive, s; positions are carried forward by it.
     """
 
     arm: str = "so101"
@@ -61,12 +62,13 @@ class PhysVLARobotActionStep(ProcessorStep):
     target_key: str | None = None
     config: dict[str, Any] = field(default_factory=lambda: PRESETS[DEFAULT_PRESET].to_dict())
     velocity_cutoff_hz: float | None = 5.0
+    state_delay_s: float = 0.0
     passthrough_counts: Counter = field(default_factory=Counter, init=False, repr=False)
 
     def __post_init__(self) -> None:
         model = ArmModel(self.arm)  # unknown arm, model, joints: ArmError now
         self.source = JointStateSource(model, 1.0 / self.fps, self.object_xyz, self.target_xyz, self.object_key,
-                                       self.target_key, self.velocity_cutoff_hz)
+                                       self.target_key, self.velocity_cutoff_hz, self.state_delay_s)
         self.adapter = JointTargetAdapter(model)
         self.cfg = PhysVLAConfig.from_dict(self.config).replace(layout=VIRTUAL, weighting="task_space")
         self.corrector = Corrector(self.cfg, 1)
@@ -150,7 +152,7 @@ class PhysVLARobotActionStep(ProcessorStep):
     def get_config(self) -> dict[str, Any]:
         return {"arm": self.arm, "fps": self.fps, "object_xyz": self.object_xyz, "target_xyz": self.target_xyz,
                 "object_key": self.object_key, "target_key": self.target_key, "config": self.config,
-                "velocity_cutoff_hz": self.velocity_cutoff_hz}
+                "velocity_cutoff_hz": self.velocity_cutoff_hz, "state_delay_s": self.state_delay_s}
 
     def transform_features(
         self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]

@@ -34,6 +34,8 @@ class JointStateSource:
             stem of three float keys "<key>.x", "<key>.y", "<key>.z" (lerobot robots report floats), or None.
         velocity_cutoff_hz: cutoff of the first-order low-pass on the finite-difference joint
             velocity, Hz (None: unfiltered).
+        state_delay_s: how old the readings are when they arrive, s (bus and driver latency); the
+            positions are carried forward by qdot * state_delay_s (0: taken as they are).
         obj_rest_z: the object's resting height, m: its height at the episode's first read.
         episode_step: reads since the last `reset()`.
         failures: Counter of exception types of failed reads (those rows come back invalid).
@@ -41,7 +43,7 @@ class JointStateSource:
 
     def __init__(self, arm: str | ArmSpec | ArmModel, dt: float, object_xyz=None, target_xyz=None,
                  object_key: str | None = None, target_key: str | None = None,
-                 velocity_cutoff_hz: float | None = 5.0):
+                 velocity_cutoff_hz: float | None = 5.0, state_delay_s: float = 0.0):
         self.arm = arm if isinstance(arm, ArmModel) else ArmModel(arm)
         if not (dt > 0 and math.isfinite(dt)):
             raise ArmError(f"physvla: control period dt={dt!r} s; give the robot's period (e.g. 1/30)")
@@ -53,6 +55,9 @@ class JointStateSource:
         self.target_xyz = None if target_xyz is None else np.asarray(target_xyz, dtype=np.float64).reshape(3)
         self.object_key, self.target_key = object_key, target_key
         self.velocity_cutoff_hz = velocity_cutoff_hz
+        if not (state_delay_s >= 0 and math.isfinite(state_delay_s)):
+            raise ArmError(f"physvla: state_delay_s={state_delay_s!r}; give the readings' age in seconds (>= 0)")
+        self.state_delay_s = float(state_delay_s)
         spec = self.arm.spec
         self._keys = [f"{m}.pos" for m in spec.motors]
         self._grip_key = None if spec.gripper_motor is None else f"{spec.gripper_motor}.pos"
@@ -114,6 +119,8 @@ class JointStateSource:
                 alpha = self.dt / (self.dt + 1.0 / (2.0 * math.pi * self.velocity_cutoff_hz))
                 self._qdot += alpha * (raw - self._qdot)
         self._q_prev = q
+        if self.state_delay_s > 0:  # where the joints are now, not when they were read
+            q = q + self._qdot * self.state_delay_s
         dyn = self.arm.dynamics(q, self._qdot)
         obj = self._point(self.object_xyz, self.object_key, observation)
         tgt = self._point(self.target_xyz, self.target_key, observation)

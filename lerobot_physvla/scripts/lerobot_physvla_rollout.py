@@ -44,7 +44,7 @@ def activate_rollout(argv: list[str]) -> None:
                 object_xyz=list(robot["object_xyz"]) if "object_xyz" in robot else None,
                 target_xyz=list(robot["target_xyz"]) if "target_xyz" in robot else None,
                 object_key=robot.get("object_key"), target_key=robot.get("target_key"),
-                velocity_cutoff_hz=robot.get("velocity_cutoff_hz", 5.0))
+                velocity_cutoff_hz=robot.get("velocity_cutoff_hz", 5.0), state_delay_s=robot.get("state_delay_s", 0.0))
     except (FlagError, ArmError, compat.UnsupportedLerobot) as e:
         print(f"lerobot-physvla: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None

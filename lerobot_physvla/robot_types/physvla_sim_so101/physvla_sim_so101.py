@@ -53,6 +53,7 @@ class SimSO101(Robot):
         self._substeps = max(1, round(1.0 / (config.fps * m.opt.timestep)))
         self._rng = np.random.default_rng(config.seed)
         self._connected = False
+        self._past: list[np.ndarray] = []  # the last reading_delay_ticks + 1 joint positions, oldest first
         self.last_action: dict | None = None
         self.steps = 0
 
@@ -80,6 +81,8 @@ class SimSO101(Robot):
         self.data.ctrl[self._act[-1]] = self._grip_hi  # gripper open
         mujoco.mj_forward(self.model, self.data)
         self._connected, self.steps, self.last_action = True, 0, None
+        d = self.config.reading_delay_ticks  # readings from d ticks ago (the start pose until then)
+        self._past = [self.data.qpos[self._qpos].copy() for _ in range(d + 1)] if d > 0 else []
 
     def calibrate(self) -> None:
         pass
@@ -91,7 +94,7 @@ class SimSO101(Robot):
         return float((q - self._grip_lo) / (self._grip_hi - self._grip_lo) * 100.0)
 
     def get_observation(self) -> dict:
-        q = self.data.qpos[self._qpos]
+        q = self._past[0] if self._past else self.data.qpos[self._qpos]
         obs = {f"{k}.pos": float(np.rad2deg(v)) for k, v in zip(MOTORS[:-1], q[:-1])}
         if self.config.joint_noise_deg > 0:
             for k in MOTORS[:-1]:
@@ -111,6 +114,9 @@ class SimSO101(Robot):
         self.data.ctrl[self._act[-1]] = grip
         mujoco.mj_step(self.model, self.data, nstep=self._substeps)
         self.steps += 1
+        if self.config.reading_delay_ticks > 0:
+            self._past.append(self.data.qpos[self._qpos].copy())
+            del self._past[: max(0, len(self._past) - self.config.reading_delay_ticks - 1)]
         self.last_action = {f"{k}.pos": float(v) for k, v in zip(MOTORS, target)}
         if self.config.action_log:
             with open(self.config.action_log, "a") as f:
