@@ -124,8 +124,6 @@ class Corrector:
         self._last_out = np.zeros((b, lay.dim))  # the action each env emitted last (the hold of absolute channels)
         self._has_last = np.zeros(b, np.bool_)
         self._flat_width, self._n = -1, 0  # packed-state width last seen and its joint count
-        self._ip = np.zeros(0, np.int64)  # the tick's integer parameters for that joint count
-        self._shape_2d = (b, lay.dim)
         self._params: dict[int, np.ndarray] = {}  # joint count -> integer parameters of the tick (tick.py)
         self._fp = self._float_params()
         # diagnostics of the latest committed step, written in place by the kernel (columns: tick.py)
@@ -197,23 +195,7 @@ class Corrector:
     def correct_packed(self, actions, flat: np.ndarray) -> np.ndarray:
         """As `__call__`, with the states already packed: flat (B, packed_size(n)) float64."""
         t0 = time.perf_counter()
-        a = np.ascontiguousarray(actions, dtype=np.float64)
-        if (a.shape == self._shape_2d and flat.ndim == 2 and flat.shape[0] == self.batch_size
-                and flat.shape[1] == self._flat_width and flat.dtype == np.float64 and flat.flags.c_contiguous
-                and not self.profile):
-            # the control loop's case, every check above: one step of B envs, a state width seen
-            # before; one compiled call, and the Python around it kept short
-            self.steps += self.batch_size
-            out, events = correct_tick(a, flat, self._ip, self._fp, self._idx, self._p_a, self._mem, self._lp_mem,
-                                       self._absolute, self._hold0, self._last_out, self._has_last, True,
-                                       self.diag_buffer)
-            self._t_a = self._t_b = _NAN
-            self._diag, self._has_diag = None, True
-            if events:
-                self._count_events(True)
-            self._t_total = time.perf_counter() - t0
-            return out
-        return self._correct(self._check(a), flat, t0)
+        return self._correct(self._check(actions), flat, t0)
 
     def _correct(self, a: np.ndarray, flat: np.ndarray, t0: float) -> np.ndarray:
         if flat.ndim != 2 or flat.shape[0] != self.batch_size:
@@ -222,7 +204,7 @@ class Corrector:
             n = n_joints_from_size(flat.shape[1])
             if self.branch_b is not None:
                 self.branch_b.check_arm(n)
-            self._flat_width, self._n, self._ip = flat.shape[1], n, self._int_params(n)
+            self._flat_width, self._n = flat.shape[1], n
         n = self._n
         if flat.dtype != np.float64 or not flat.flags.c_contiguous:
             flat = np.ascontiguousarray(flat, dtype=np.float64)
