@@ -3,8 +3,8 @@
 lerobot imports every installed distribution named `lerobot_env_*` at the start of its console
 scripts; ours (`lerobot_env_physvla`) calls `activate()`, which
 - registers the `libero_physvla` env type, the processor steps (env: capture, policy: corrector,
-  robot: joint-target corrector), the `physvla_scripted` policy type and the `physvla_sim_so101`
-  robot type (always);
+  robot: joint-target corrector), the `physvla_scripted` policy type and the `physvla_sim_so101` / `physvla_sim_panda`
+  robot types (always);
 - in `lerobot-eval` (and `lerobot-physvla-eval`) only: applies `--policy.postprocess` and
   `--physvla.*` (see `scripts/lerobot_physvla_eval.py`); in `lerobot-rollout`: the same flags plus
   the arm's (`scripts/lerobot_physvla_rollout.py`). No flag leaves lerobot untouched.
@@ -30,7 +30,7 @@ def activate(argv: list[str] | None = None) -> None:
     from lerobot_physvla.envs import libero_physvla  # noqa: F401
     from lerobot_physvla.policies import physvla_scripted  # noqa: F401
     from lerobot_physvla.processor import physvla_processor, physvla_robot_step  # noqa: F401
-    from lerobot_physvla.robot_types import physvla_sim_so101  # noqa: F401  (robot type physvla_sim_so101)
+    from lerobot_physvla.robot_types import physvla_sim_panda, physvla_sim_so101  # noqa: F401  (robot types)
 
     argv = sys.argv if argv is None else argv
     if argv and Path(argv[0]).name in ("lerobot-rollout", "lerobot_rollout.py"):

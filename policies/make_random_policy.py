@@ -1,13 +1,14 @@
 """Make a LeRobot policy with random weights through lerobot's own factory, saved locally.
 
-    .venv/bin/python policies/make_random_policy.py OUT_DIR [--type act|diffusion] [--inputs state|image]
+    .venv/bin/python policies/make_random_policy.py OUT_DIR [--type act|diffusion] [--inputs state|image|so101|panda]
 
 --inputs state (default): what the `libero_physvla` env gives with --env.cameras=false,
 observation.state (8: eef xyz, axis-angle, 2 finger joints) and observation.environment_state
 (6: object xyz, target xyz). --inputs image: observation.state and LIBERO's agent-view camera
 (observation.images.image, 3x360x360), for plain `--env.type=libero`. Output: the 7-D action.
 --inputs so101: the simulated SO-101 (robot type physvla_sim_so101, blank_camera=true): its six
-motor positions and its blank camera, the 6-D joint-target action, for lerobot-rollout. Normalisation stats are identity
+motor positions and its blank camera, the 6-D joint-target action, for lerobot-rollout. --inputs
+panda: the same for the simulated Panda (physvla_sim_panda): 7 joints and the gripper, 8-D action. Normalisation stats are identity
 (mean 0, std 1; min -1, max 1), so the processors are complete. Used by the tests and docs to
 exercise the real lerobot-eval path without any hub download.
 """
@@ -34,6 +35,10 @@ INPUTS = {
         "observation.state": PolicyFeature(type=FeatureType.STATE, shape=(6,)),
         "observation.images.front": PolicyFeature(type=FeatureType.VISUAL, shape=(3, 8, 8)),
     },
+    "panda": {  # the simulated Panda (physvla_sim_panda, blank_camera=true): 7 joints and the gripper
+        "observation.state": PolicyFeature(type=FeatureType.STATE, shape=(8,)),
+        "observation.images.front": PolicyFeature(type=FeatureType.VISUAL, shape=(3, 8, 8)),
+    },
     "image": {
         "observation.state": PolicyFeature(type=FeatureType.STATE, shape=(8,)),
         "observation.images.image": PolicyFeature(type=FeatureType.VISUAL, shape=(3, 360, 360)),
@@ -47,7 +52,8 @@ SMALL = {
 }
 
 
-ACTION_DIM = {"state": 7, "image": 7, "so101": 6}
+ACTION_DIM = {"state": 7, "image": 7, "so101": 6, "panda": 8}
+ROBOTS = ("so101", "panda")  # inputs of a simulated robot: no env config, the joint targets are the action
 
 
 def identity_stats(inputs: str = "state") -> dict:
@@ -73,10 +79,10 @@ def main() -> None:
     args = ap.parse_args()
     torch.manual_seed(args.seed)
     cfg = make_policy_config(args.type, device="cpu", input_features=dict(INPUTS[args.inputs]), **SMALL[args.type])
-    if args.inputs == "so101":  # no env config: the robot's 6 joint targets are the action
+    if args.inputs in ROBOTS:  # no env config: the robot's joint targets are the action
         from lerobot.policies.factory import get_policy_class
 
-        cfg.output_features = {"action": PolicyFeature(type=FeatureType.ACTION, shape=(ACTION_DIM["so101"],))}
+        cfg.output_features = {"action": PolicyFeature(type=FeatureType.ACTION, shape=(ACTION_DIM[args.inputs],))}
         policy = get_policy_class(cfg.type)(cfg)
     else:
         policy = make_policy(cfg, env_cfg=LiberoEnv(task="libero_spatial"))

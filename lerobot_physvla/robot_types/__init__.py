@@ -1,2 +1,3 @@
-"""LeRobot robot types this plugin adds (like lerobot/robots/<name>/): `physvla_sim_so101`, a
-MuJoCo-simulated SO-101 behind LeRobot's `Robot` interface."""
+"""LeRobot robot types this plugin adds (like lerobot/robots/<name>/): `physvla_sim_so101` and
+`physvla_sim_panda`, MuJoCo-simulated arms behind LeRobot's `Robot` interface (their shared base:
+sim_arm.py)."""

