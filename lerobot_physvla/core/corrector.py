@@ -110,6 +110,7 @@ class Corrector:
         self.batch_size = b = int(batch_size)
         self.profile = bool(profile)
         self.branch_b = ELGate(self.cfg) if self.cfg.mode == "phys_el" and self.cfg.el_mode != "off" else None
+        self._b_on = True  # set_branch_b
         self.passthrough_counts: Counter = Counter()
         self.guard_counts: Counter = Counter()
         self.steps = 0
@@ -281,12 +282,22 @@ class Corrector:
                 ip[IP_FLAGS:IP_GRIP] = self.branch_b.flags
             temporal = cfg.mode == "temporal"
             ip[IP_GRIP], ip[IP_TEMPORAL], ip[IP_BASELINE] = self._grip, temporal, cfg.mode == "baseline"
-            ip[IP_BRANCH_B] = self.branch_b is not None
+            ip[IP_BRANCH_B] = self.branch_b is not None and self._b_on
             ip[IP_VETO] = cfg.gripper_rule == "veto" and not temporal
             ip[IP_LOWPASS] = cfg.lowpass == "adaptive" and cfg.mode in ("phys", "phys_el")
             ip[IP_LP_MASK:N_IP] = cfg.lowpass_mask
             self._params[n] = ip
         return ip
+
+    def set_branch_b(self, on: bool) -> None:
+        """Run Branch B (the EL gate) from the next call on, or not: for a caller that finds its
+        residual meaningless on a tick (e.g. dominated by sensor noise, robots/noise_guard.py).
+        Nothing changes for a mode without Branch B."""
+        if self.branch_b is None or bool(on) == self._b_on:
+            return
+        self._b_on = bool(on)
+        for ip in self._params.values():
+            ip[IP_BRANCH_B] = self._b_on
 
     def _guarded(self, out, a_raw, status, every: bool, commit: bool) -> None:
         lay = self.layout

@@ -35,6 +35,7 @@ from lerobot_physvla.processor.physvla_processor import _unregister_name_for_sav
 from lerobot_physvla.robots.arms import ArmError, ArmModel
 from lerobot_physvla.robots.joint_state import JointStateSource
 from lerobot_physvla.robots.joint_targets import VIRTUAL, JointTargetAdapter
+from lerobot_physvla.robots.noise_guard import BranchBNoiseGuard
 
 
 @_unregister_name_for_saving
@@ -52,6 +53,10 @@ class PhysVLARobotActionStep(ProcessorStep):
             the virtual Cartesian one (robots/joint_targets.py) and Branch B weights task-space.
         velocity_cutoff_hz: low-pass cutoff of the joint velocities, Hz (None: unfiltered).
         state_delay_s: the readings' age when they arrive, s; positions are carried forward by it.
+        reading_noise_deg: the joint readings' noise std, degrees; None: estimated from the readings.
+        noise_snr_min: with Branch B (mode phys_el), it runs on a tick only when its residual is at
+            least this many times the residual's noise std (robots/noise_guard.py); 0: always.
+        branch_b_off: Counter of the reasons Branch B was off on a tick (noise_unknown, noise_dominated).
     """
 
     arm: str = "so101"
@@ -63,21 +68,28 @@ class PhysVLARobotActionStep(ProcessorStep):
     config: dict[str, Any] = field(default_factory=lambda: PRESETS[DEFAULT_PRESET].to_dict())
     velocity_cutoff_hz: float | None = 5.0
     state_delay_s: float = 0.0
+    reading_noise_deg: float | None = None
+    noise_snr_min: float = 3.0
     passthrough_counts: Counter = field(default_factory=Counter, init=False, repr=False)
+    branch_b_off: Counter = field(default_factory=Counter, init=False, repr=False)
 
     def __post_init__(self) -> None:
         model = ArmModel(self.arm)  # unknown arm, model, joints: ArmError now
         self.source = JointStateSource(model, 1.0 / self.fps, self.object_xyz, self.target_xyz, self.object_key,
-                                       self.target_key, self.velocity_cutoff_hz, self.state_delay_s)
+                                       self.target_key, self.velocity_cutoff_hz, self.state_delay_s,
+                                       self.reading_noise_deg)
         self.adapter = JointTargetAdapter(model)
         self.cfg = PhysVLAConfig.from_dict(self.config).replace(layout=VIRTUAL, weighting="task_space")
         self.corrector = Corrector(self.cfg, 1)
+        b = self.corrector.branch_b is not None and self.noise_snr_min > 0
+        self.guard = BranchBNoiseGuard(self.noise_snr_min) if b else None
         spec = model.spec
         self._keys = [f"{m}.pos" for m in spec.motors]
         self._grip = None if spec.gripper_motor is None else f"{spec.gripper_motor}.pos"
         self._to_rad = spec.to_radians
         f = field_offsets(model.n_joints)
         self._eef, self._valid, self._j, self._n = f["eef_pos"], f["valid"], f["J_pos"], model.n_joints
+        self._f = f
         self._checked = False
 
     def _warn(self, why: str, detail: str) -> None:
@@ -133,8 +145,10 @@ class PhysVLARobotActionStep(ProcessorStep):
             self._warn("invalid_state", "the arm's state could not be read; the policy's action passes")
             return dict(action)
         a_raw = self.adapter.to_virtual(q_t, g_r, row[self._eef : self._eef + 3])
-        a_out = self.corrector.correct_packed(a_raw[None], row[None])[0]
         j_pos = row[self._j : self._j + 3 * self._n].reshape(3, self._n)
+        if self.guard is not None:
+            self._guard_branch_b(row, a_raw, j_pos)
+        a_out = self.corrector.correct_packed(a_raw[None], row[None])[0]
         q_new, g_new = self.adapter.from_virtual(a_out, a_raw, q_t, g_r, j_pos)
         out = dict(action)
         if q_new is not None:
@@ -144,15 +158,34 @@ class PhysVLARobotActionStep(ProcessorStep):
             out[self._grip] = float(np.clip(g_new, 0.0, self.source.arm.spec.gripper_full_scale))
         return out
 
+    def _guard_branch_b(self, row: np.ndarray, a_raw: np.ndarray, j_pos: np.ndarray) -> None:
+        """Branch B on or off for this tick, by the noise guard (robots/noise_guard.py)."""
+        f, n, src = self._f, self._n, self.source
+        dt = row[f["dt"]]
+        v = a_raw[list(VIRTUAL.pos)] * (VIRTUAL.metres_per_unit / dt)  # m/s, as Branch B reads it
+        why = self.guard.check(row[f["M"] : f["M"] + n * n].reshape(n, n), j_pos, row[f["qdot"] : f["qdot"] + n],
+                               row[f["bias"] : f["bias"] + n], row[f["tau"] : f["tau"] + n], v, dt,
+                               self.cfg.dls_damping, src.reading_noise_rad, src.velocity_noise_rad_s)
+        self.corrector.set_branch_b(why is None)
+        if why is not None:
+            self.branch_b_off[why] += 1
+            if self.branch_b_off[why] == 1:
+                warnings.warn(f"physvla: Branch B off on this tick ({why}: |r_EL| / noise = {self.guard.last_snr:.2f}, "
+                              f"below noise_snr_min={self.noise_snr_min}); counted in branch_b_off",
+                              RuntimeWarning, stacklevel=5)
+
     def reset(self) -> None:
         """An episode starts: the state source and the corrector's memory start afresh."""
         self.source.reset()
         self.corrector.reset()
+        if self.guard is not None:
+            self.guard.reset()
 
     def get_config(self) -> dict[str, Any]:
         return {"arm": self.arm, "fps": self.fps, "object_xyz": self.object_xyz, "target_xyz": self.target_xyz,
                 "object_key": self.object_key, "target_key": self.target_key, "config": self.config,
-                "velocity_cutoff_hz": self.velocity_cutoff_hz, "state_delay_s": self.state_delay_s}
+                "velocity_cutoff_hz": self.velocity_cutoff_hz, "state_delay_s": self.state_delay_s,
+                "reading_noise_deg": self.reading_noise_deg, "noise_snr_min": self.noise_snr_min}
 
     def transform_features(
         self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]

@@ -23,6 +23,10 @@ from lerobot_physvla.core.state import field_offsets, packed_size
 from lerobot_physvla.robots.arms import ArmError, ArmModel, ArmSpec
 
 
+NOISE_WINDOW = 30  # readings over which the reading noise is estimated (1 s at 30 Hz)
+MIN_NOISE_SAMPLES = 8
+
+
 class JointStateSource:
     """s_t of one arm from its joint readings, as a packed state row (state.py layout).
 
@@ -38,12 +42,15 @@ class JointStateSource:
             positions are carried forward by qdot * state_delay_s (0: taken as they are).
         obj_rest_z: the object's resting height, m: its height at the episode's first read.
         episode_step: reads since the last `reset()`.
+        reading_noise_deg: std of the joint readings' noise, degrees, as configured; None: estimated
+            online from the readings (`reading_noise_rad`).
         failures: Counter of exception types of failed reads (those rows come back invalid).
     """
 
     def __init__(self, arm: str | ArmSpec | ArmModel, dt: float, object_xyz=None, target_xyz=None,
                  object_key: str | None = None, target_key: str | None = None,
-                 velocity_cutoff_hz: float | None = 5.0, state_delay_s: float = 0.0):
+                 velocity_cutoff_hz: float | None = 5.0, state_delay_s: float = 0.0,
+                 reading_noise_deg: float | None = None):
         self.arm = arm if isinstance(arm, ArmModel) else ArmModel(arm)
         if not (dt > 0 and math.isfinite(dt)):
             raise ArmError(f"physvla: control period dt={dt!r} s; give the robot's period (e.g. 1/30)")
@@ -58,21 +65,60 @@ class JointStateSource:
         if not (state_delay_s >= 0 and math.isfinite(state_delay_s)):
             raise ArmError(f"physvla: state_delay_s={state_delay_s!r}; give the readings' age in seconds (>= 0)")
         self.state_delay_s = float(state_delay_s)
+        if reading_noise_deg is not None and not (reading_noise_deg >= 0 and math.isfinite(reading_noise_deg)):
+            raise ArmError(f"physvla: reading_noise_deg={reading_noise_deg!r}; give the joint readings' noise std "
+                           "in degrees (>= 0), or None to estimate it from the readings")
+        self.reading_noise_deg = reading_noise_deg
+        fc = velocity_cutoff_hz  # the velocity estimate's noise per unit of reading noise (see velocity_noise_rad_s)
+        a = 1.0 if fc is None else self.dt / (self.dt + 1.0 / (2.0 * math.pi * fc))
+        self._qdot_gain = a * math.sqrt(2.0 / (2.0 - a)) / self.dt
         spec = self.arm.spec
         self._keys = [f"{m}.pos" for m in spec.motors]
         self._grip_key = None if spec.gripper_motor is None else f"{spec.gripper_motor}.pos"
         self._f = field_offsets(self.arm.n_joints)
         self._size = packed_size(self.arm.n_joints)
         self.failures: Counter = Counter()
+        # |third differences| of the readings, a ring buffer kept across episodes (the sensor's noise)
+        self._d3 = np.full((NOISE_WINDOW, self.arm.n_joints), np.nan)
+        self._n_d3 = 0
         self.reset()
 
     def reset(self) -> None:
         """Call at an episode's start: the next read starts the step counter, velocities and the
-        object's resting height afresh."""
+        object's resting height afresh (the reading-noise estimate is kept)."""
         self.episode_step = 0
         self.obj_rest_z = float("nan")
         self._q_prev: np.ndarray | None = None
         self._qdot = np.zeros(self.arm.n_joints)
+        self._hist = np.full((4, self.arm.n_joints), np.nan)  # the last 4 readings (rad), newest last
+
+    @property
+    def reading_noise_rad(self) -> np.ndarray:
+        """Per joint, the readings' noise std, rad: as configured, or estimated from the last
+        NOISE_WINDOW third differences of the readings (robust: median |d3| / 0.6745 / sqrt(20), since
+        d3 = q_t - 3 q_t-1 + 3 q_t-2 - q_t-3 of white noise has variance 20 sigma^2 and a smooth
+        motion's d3 is its jerk * dt^3, ~0). NaN until MIN_NOISE_SAMPLES differences are seen."""
+        n = self.arm.n_joints
+        if self.reading_noise_deg is not None:
+            return np.full(n, self.reading_noise_deg * math.pi / 180.0)
+        if self._n_d3 < MIN_NOISE_SAMPLES:
+            return np.full(n, np.nan)
+        return np.median(self._d3[: min(self._n_d3, NOISE_WINDOW)], axis=0) / (0.6745 * math.sqrt(20.0))
+
+    @property
+    def velocity_noise_rad_s(self) -> np.ndarray:
+        """Per joint, the std of the velocity estimate's noise, rad/s: the reading noise through the
+        finite difference and the low-pass (for white reading noise sigma, the filter's output has
+        std sigma / dt * a sqrt(2 / (2 - a)), a its smoothing factor; a = 1 unfiltered: sqrt(2) sigma / dt)."""
+        return self.reading_noise_rad * self._qdot_gain
+
+    def _track_noise(self, q: np.ndarray) -> None:
+        h = self._hist
+        h[:-1] = h[1:]
+        h[-1] = q
+        if self.episode_step >= 3:
+            self._d3[self._n_d3 % NOISE_WINDOW] = np.abs(h[3] - 3.0 * h[2] + 3.0 * h[1] - h[0])
+            self._n_d3 += 1
 
     def check(self, observation: dict) -> None:
         """Raises a one-line ArmError when the observation lacks a key this arm needs (call it on the
@@ -109,6 +155,7 @@ class JointStateSource:
     def _read(self, observation: dict) -> np.ndarray:
         spec, f = self.arm.spec, self._f
         q = np.array([float(observation[k]) for k in self._keys]) * spec.to_radians
+        self._track_noise(q)
         if self._q_prev is None:
             self._qdot[:] = 0.0
         else:

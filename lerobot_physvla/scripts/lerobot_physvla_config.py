@@ -2,6 +2,7 @@
 
     lerobot-physvla-config POLICY_DIR [--preset default] [--mode phys_el] [--physvla.<field>=<value> ...]
     lerobot-physvla-config --write-presets policies/physvla_configs
+    lerobot-physvla-config POLICY_DIR --physvla.arm=so101 --physvla.object_key=block --physvla.target_xyz=[0.3,-0.2,0]
 
 With no flag it adds the `default` preset (the evidence-chosen default, docs/method.md); `--mode`
 alone gives that mode of the paper (main-text settings), `--preset` any named preset (flags as
@@ -11,6 +12,10 @@ Loads POLICY_DIR/policy_postprocessor.json with lerobot's own PolicyProcessorPip
 (or replaces) the PhysVLACorrectorStep, and saves it back with `save_pretrained`: the entry is
 written in the `"class"` form, so any interpreter loading it imports lerobot_physvla by itself.
 The directory can then be pushed to the hub like any checkpoint.
+
+With `--physvla.arm` (and the arm's flags of lerobot-rollout: object / target, filter, noise) it
+instead saves the arm's corrector (PhysVLARobotActionStep) as POLICY_DIR/physvla_robot_processor.json,
+which `lerobot-rollout --policy.path=POLICY_DIR --policy.postprocess=physvla` applies.
 """
 
 from __future__ import annotations
@@ -49,12 +54,34 @@ def add_corrector(policy_dir: str | Path, cfg: PhysVLAConfig) -> Path:
     return d / POSTPROCESSOR
 
 
+def add_robot_corrector(policy_dir: str | Path, cfg: PhysVLAConfig, robot: dict) -> Path:
+    """Save the arm's corrector step (fields: ROBOT_FLAGS values) as POLICY_DIR/physvla_robot_processor.json."""
+    from lerobot.processor import RobotProcessorPipeline
+    from lerobot.processor.converters import robot_action_observation_to_transition, transition_to_robot_action
+
+    from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
+    from lerobot_physvla.scripts.lerobot_physvla_rollout import ROBOT_PROCESSOR
+
+    fields = {k: list(v) if k.endswith("_xyz") else v for k, v in robot.items()}
+    step = PhysVLARobotActionStep(config=cfg.to_dict(), **fields)  # checked now: arm, points, keys
+    pipe = RobotProcessorPipeline(steps=[step], name="physvla_robot_processor",
+                                  to_transition=robot_action_observation_to_transition,
+                                  to_output=transition_to_robot_action)
+    d = Path(policy_dir)
+    d.mkdir(parents=True, exist_ok=True)
+    pipe.save_pretrained(d, config_filename=ROBOT_PROCESSOR)
+    return d / ROBOT_PROCESSOR
+
+
 def main(argv: list[str] | None = None) -> None:
     from lerobot_physvla.flags import FlagError, build_config, split_argv
 
     argv = sys.argv[1:] if argv is None else argv
+    from lerobot_physvla.flags import ROBOT_FLAGS
+    from lerobot_physvla.robots.arms import ArmError
+
     try:
-        _, overrides, rest = split_argv(argv)
+        _, overrides, rest = split_argv(argv, robot=True)
     except FlagError as e:
         print(f"lerobot-physvla-config: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None
@@ -69,6 +96,7 @@ def main(argv: list[str] | None = None) -> None:
         overrides["mode"] = args.mode
     if args.preset:
         overrides["preset"] = args.preset
+    robot = {k: overrides.pop(k) for k in ROBOT_FLAGS if k in overrides}
     try:
         cfg = build_config(overrides)
     except FlagError as e:
@@ -81,6 +109,12 @@ def main(argv: list[str] | None = None) -> None:
         for name in PRESETS:
             path = add_corrector(Path(args.write_presets) / f"preset_{name}", build_config({**overrides, "preset": name}))
             print(f"wrote {path}")
+    elif args.policy_dir and robot:
+        try:
+            print(f"wrote {add_robot_corrector(args.policy_dir, cfg, robot)}")
+        except ArmError as e:
+            print(f"lerobot-physvla-config: error: {e}", file=sys.stderr)
+            raise SystemExit(2) from None
     elif args.policy_dir:
         print(f"wrote {add_corrector(args.policy_dir, cfg)}")
     else:

@@ -8,15 +8,24 @@
 in lerobot-eval, the rollout's `--fps`) and wraps lerobot-rollout's `build_rollout_context` so
 that its robot action processor runs lerobot's steps, then ours. Bad flags or an unknown arm stop
 the program before anything is built, with one line and exit code 2.
+
+A configuration shared with the policy: `lerobot-physvla-config POLICY_DIR --physvla.arm=so101
+--physvla.object_key=block ...` saves the step as POLICY_DIR/physvla_robot_processor.json (a
+lerobot RobotProcessorPipeline, pushed to the hub with the checkpoint); then
+`lerobot-rollout --policy.path=POLICY_DIR --policy.postprocess=physvla` applies it, flags on the
+command line overriding its fields.
 """
 
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 from lerobot_physvla import compat
 from lerobot_physvla.flags import ROBOT_FLAGS, FlagError, build_config, split_argv
 from lerobot_physvla.robots.arms import ArmError
+
+ROBOT_PROCESSOR = "physvla_robot_processor.json"  # the arm's corrector, saved beside a policy
 
 
 def _fps(argv: list[str]) -> float:
@@ -27,8 +36,44 @@ def _fps(argv: list[str]) -> float:
     return 30.0  # RolloutConfig's default
 
 
+def _policy_path(argv: list[str]) -> str | None:
+    for i, arg in enumerate(argv):
+        key, eq, value = arg.partition("=")
+        if key == "--policy.path":
+            return value if eq else (argv[i + 1] if i + 1 < len(argv) else None)
+    return None
+
+
+def saved_robot_step(policy_path: str | None) -> dict | None:
+    """The PhysVLARobotActionStep fields saved with a policy (`lerobot-physvla-config POLICY_DIR
+    --physvla.arm=...` writes them to POLICY_DIR/ROBOT_PROCESSOR), read from a local checkpoint
+    directory or its hub repository; None if it has none."""
+    from lerobot.processor import RobotProcessorPipeline
+
+    from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
+
+    if not policy_path:
+        return None
+    local = Path(policy_path)
+    if local.exists() and not (local / ROBOT_PROCESSOR).is_file():
+        return None
+    try:
+        pipe = RobotProcessorPipeline.from_pretrained(policy_path, config_filename=ROBOT_PROCESSOR)
+    except Exception as e:  # noqa: BLE001 - a hub repository without the file (or unreachable): no saved config
+        if local.exists():
+            raise FlagError(f"{local / ROBOT_PROCESSOR} does not load ({type(e).__name__}: {e}); rewrite it with "
+                            "lerobot-physvla-config POLICY_DIR --physvla.arm=...") from None
+        return None
+    steps = [st for st in pipe.steps if isinstance(st, PhysVLARobotActionStep)]
+    return steps[0].get_config() if steps else None
+
+
 def activate_rollout(argv: list[str]) -> None:
-    """Strip our flags from argv in place and install the rollout hook if asked. Exits 2 on bad flags."""
+    """Strip our flags from argv in place and install the rollout hook if asked. Exits 2 on bad flags.
+
+    The step's fields come from the flags, over those saved with the policy (`saved_robot_step`)
+    when it has them: a flag given on the command line wins; corrector flags (--physvla.mode,
+    --physvla.preset, ...) replace the saved corrector configuration."""
     from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
 
     try:
@@ -38,13 +83,22 @@ def activate_rollout(argv: list[str]) -> None:
             raise FlagError("--physvla.* flags need --policy.postprocess=physvla")
         if post == "physvla":
             compat.check_lerobot_version()
-            cfg = build_config(overrides)
-            step = PhysVLARobotActionStep(
-                arm=robot.get("arm", "so101"), fps=_fps(rest), config=cfg.to_dict(),
-                object_xyz=list(robot["object_xyz"]) if "object_xyz" in robot else None,
-                target_xyz=list(robot["target_xyz"]) if "target_xyz" in robot else None,
-                object_key=robot.get("object_key"), target_key=robot.get("target_key"),
-                velocity_cutoff_hz=robot.get("velocity_cutoff_hz", 5.0), state_delay_s=robot.get("state_delay_s", 0.0))
+            fields = saved_robot_step(_policy_path(rest)) or {}
+            if fields:
+                print(f"lerobot-physvla: the arm's corrector configuration saved with the policy "
+                      f"({_policy_path(rest)}/{ROBOT_PROCESSOR}); flags override it", file=sys.stderr)
+            if overrides or "config" not in fields:
+                fields["config"] = build_config(overrides).to_dict()
+            for k in ("object_xyz", "target_xyz"):
+                if k in robot:
+                    robot[k] = list(robot[k])
+                    fields.pop(k.replace("xyz", "key"), None)  # a fixed point replaces a saved key ...
+            for k in ("object_key", "target_key"):
+                if k in robot:
+                    fields.pop(k.replace("key", "xyz"), None)  # ... and a key a saved fixed point
+            fields.update(robot)
+            fields["fps"] = _fps(rest)
+            step = PhysVLARobotActionStep(**fields)
     except (FlagError, ArmError, compat.UnsupportedLerobot) as e:
         print(f"lerobot-physvla: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None
@@ -62,13 +116,15 @@ def install_rollout_hook(step) -> None:
     from lerobot.scripts import lerobot_rollout
 
     original = lerobot_rollout.build_rollout_context
-    if getattr(original, "_physvla", False):
+    if getattr(original, "_physvla", False):  # installed already: the new step replaces the old
+        original.step = step
         return
 
     def build_rollout_context(cfg, shutdown_event, teleop_action_processor=None, robot_action_processor=None,
                               robot_observation_processor=None):
         base = robot_action_processor or make_default_robot_action_processor()
-        corrected = RobotProcessorPipeline(steps=[*base.steps, step], name="robot_action_processor_physvla",
+        corrected = RobotProcessorPipeline(steps=[*base.steps, build_rollout_context.step],
+                                           name="robot_action_processor_physvla",
                                            to_transition=robot_action_observation_to_transition,
                                            to_output=transition_to_robot_action)
         return original(cfg, shutdown_event, teleop_action_processor, corrected, robot_observation_processor)

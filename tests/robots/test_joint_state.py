@@ -91,3 +91,29 @@ def test_the_corrector_reads_it_and_vetoes_a_close_far_from_the_object():
     c = Corrector(PRESETS["default"].replace(layout=lay, weighting="task_space"), 1)
     out = c.correct_packed(np.array([[0.0, 0.0, 0.0, 1.0]]), row[None])
     assert out[0, 3] == lay.gripper_open and not c.passthrough_counts
+
+
+@pytest.mark.parametrize("cutoff", [None, 5.0])
+def test_reading_noise_is_estimated_and_the_velocity_noise_follows_the_filter(cutoff):
+    """White reading noise on a smooth motion: the estimate from third differences recovers its std,
+    and velocity_noise_rad_s is the std of the velocity estimate the source actually produces."""
+    rng = np.random.default_rng(1)
+    sigma = 0.05  # deg
+    est, qd = [], []
+    kw = dict(dt=1 / 30, object_xyz=(0.2, 0, 0), target_xyz=(0.2, 0.1, 0), velocity_cutoff_hz=cutoff)
+    src, clean = JointStateSource("so101", **kw), JointStateSource("so101", **kw)
+    assert np.isnan(src.reading_noise_rad).all()  # unknown before any reading
+    for t in range(600):
+        smooth = 20 * np.sin(2 * np.pi * t / 90 + np.arange(5))  # deg
+        st = PhysState.unpack(src.read_packed(so101_obs(smooth + rng.normal(0, sigma, 5))))
+        ref = PhysState.unpack(clean.read_packed(so101_obs(smooth)))
+        if t > 30:
+            est.append(np.rad2deg(src.reading_noise_rad))
+            qd.append(st.qdot[0] - ref.qdot[0])  # the filter is linear: this is the filtered noise alone
+    assert np.median(est) == pytest.approx(sigma, rel=0.15)
+    assert np.std(qd) == pytest.approx(np.deg2rad(sigma) * src._qdot_gain, rel=0.1)
+    assert np.mean(src.velocity_noise_rad_s) == pytest.approx(np.std(qd), rel=0.2)
+    fixed = JointStateSource("so101", dt=1 / 30, object_xyz=(0.2, 0, 0), target_xyz=(0.2, 0.1, 0), reading_noise_deg=0.1)
+    np.testing.assert_allclose(fixed.reading_noise_rad, np.deg2rad(0.1))
+    with pytest.raises(ArmError, match="reading_noise_deg"):
+        JointStateSource("so101", dt=1 / 30, object_xyz=(0.2, 0, 0), target_xyz=(0.2, 0.1, 0), reading_noise_deg=-1.0)

@@ -48,3 +48,41 @@ def test_bad_flags_stop_before_anything_is_built(flags, message, capsys, restore
     assert e.value.code == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("lerobot-physvla: error:") and message in err and "\n" not in err
+
+
+def test_the_arm_configuration_saved_with_the_policy_is_applied_and_flags_override_it(tmp_path, restore_rollout):
+    """lerobot-physvla-config POLICY_DIR --physvla.arm=... saves the step beside the policy (what is
+    pushed to the hub); lerobot-rollout --policy.path=POLICY_DIR --policy.postprocess=physvla applies it."""
+    from lerobot_physvla.scripts.lerobot_physvla_config import main as config_main
+
+    config_main([str(tmp_path), "--physvla.arm=panda", "--physvla.object_key=block", "--physvla.target_xyz=[0.5,-0.2,0]",
+                 "--physvla.mode=phys_el", "--physvla.noise_snr_min=4"])
+    assert (tmp_path / "physvla_robot_processor.json").is_file()
+    argv = ["lerobot-rollout", f"--policy.path={tmp_path}", "--fps=15", "--policy.postprocess=physvla"]
+    activate_rollout(argv)
+    step = restore_rollout.build_rollout_context.step
+    assert argv == ["lerobot-rollout", f"--policy.path={tmp_path}", "--fps=15"]
+    assert (step.arm, step.object_key, step.target_xyz, step.fps) == ("panda", "block", [0.5, -0.2, 0.0], 15.0)
+    assert step.cfg.mode == "phys_el" and step.noise_snr_min == 4.0 and step.guard is not None
+    activate_rollout(["lerobot-rollout", f"--policy.path={tmp_path}", "--policy.postprocess=physvla",
+                      "--physvla.target_key=goal", "--physvla.mode=phys"])  # flags win
+    step = restore_rollout.build_rollout_context.step
+    assert step.target_key == "goal" and step.target_xyz is None and step.cfg.mode == "phys" and step.arm == "panda"
+
+
+def test_a_broken_saved_configuration_is_one_line(tmp_path, capsys, restore_rollout):
+    (tmp_path / "physvla_robot_processor.json").write_text("{not json")
+    with pytest.raises(SystemExit) as e:
+        activate_rollout(["lerobot-rollout", f"--policy.path={tmp_path}", "--policy.postprocess=physvla"])
+    err = capsys.readouterr().err.strip()
+    assert e.value.code == 2 and "physvla_robot_processor.json does not load" in err and "\n" not in err
+
+
+def test_saving_an_arm_configuration_for_an_unknown_arm_is_one_line(tmp_path, capsys):
+    from lerobot_physvla.scripts.lerobot_physvla_config import main as config_main
+
+    with pytest.raises(SystemExit) as e:
+        config_main([str(tmp_path), "--physvla.arm=ur5", "--physvla.object_xyz=[0,0,0]", "--physvla.target_xyz=[0,0,0]"])
+    err = capsys.readouterr().err.strip()
+    assert e.value.code == 2 and "unknown arm 'ur5'" in err and "\n" not in err
+    assert not (tmp_path / "physvla_robot_processor.json").exists()
