@@ -108,8 +108,28 @@ def activate_rollout(argv: list[str]) -> None:
     install_rollout_hook(step)
 
 
+def reset_with_the_policy(ctx, step) -> None:
+    """`step.reset()` whenever lerobot-rollout resets the policy's inference engine: at the start,
+    and at every episode of the episodic / DAgger strategies (lerobot/rollout/strategies). The
+    corrector's episode memory (step counter, object's resting height, EMAs) then follows the
+    policy's episodes. A context of another shape is left alone (the corrector then keeps one
+    episode for the whole rollout)."""
+    engine = getattr(getattr(ctx, "policy", None), "inference", None)
+    reset = getattr(engine, "reset", None)
+    if reset is None or getattr(reset, "_physvla", False):
+        return
+
+    def reset_both(*args, **kwargs):
+        step.reset()
+        return reset(*args, **kwargs)
+
+    reset_both._physvla = True
+    engine.reset = reset_both
+
+
 def install_rollout_hook(step) -> None:
-    """lerobot-rollout's robot action processor becomes lerobot's steps followed by `step`."""
+    """lerobot-rollout's robot action processor becomes lerobot's steps followed by `step`, and
+    `step` starts an episode whenever the policy does (`reset_with_the_policy`)."""
     from lerobot.processor import RobotProcessorPipeline
     from lerobot.processor.converters import robot_action_observation_to_transition, transition_to_robot_action
     from lerobot.processor.factory import make_default_robot_action_processor
@@ -127,7 +147,9 @@ def install_rollout_hook(step) -> None:
                                            name="robot_action_processor_physvla",
                                            to_transition=robot_action_observation_to_transition,
                                            to_output=transition_to_robot_action)
-        return original(cfg, shutdown_event, teleop_action_processor, corrected, robot_observation_processor)
+        ctx = original(cfg, shutdown_event, teleop_action_processor, corrected, robot_observation_processor)
+        reset_with_the_policy(ctx, build_rollout_context.step)
+        return ctx
 
     build_rollout_context._physvla = True
     build_rollout_context.step = step

@@ -86,3 +86,24 @@ def test_saving_an_arm_configuration_for_an_unknown_arm_is_one_line(tmp_path, ca
     err = capsys.readouterr().err.strip()
     assert e.value.code == 2 and "unknown arm 'ur5'" in err and "\n" not in err
     assert not (tmp_path / "physvla_robot_processor.json").exists()
+
+
+def test_the_corrector_starts_an_episode_when_lerobot_resets_the_policy(restore_rollout, monkeypatch):
+    """lerobot-rollout resets the policy's inference engine at every episode (episodic, DAgger
+    strategies): the corrector's episode memory must start afresh with it."""
+    from types import SimpleNamespace
+
+    engine_resets = []
+    ctx = SimpleNamespace(policy=SimpleNamespace(inference=SimpleNamespace(reset=lambda: engine_resets.append(1))))
+    monkeypatch.setattr(restore_rollout, "build_rollout_context", lambda *a, **k: ctx)
+    activate_rollout(["lerobot-rollout", "--policy.postprocess=physvla", "--physvla.arm=so101",
+                      "--physvla.object_xyz=[0.25,0,0.02]", "--physvla.target_xyz=[0.2,0.15,0.02]"])
+    built = restore_rollout.build_rollout_context(None, None)
+    step = restore_rollout.build_rollout_context.step
+    obs = {**{f"{m}.pos": 0.0 for m in ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")},
+           "gripper.pos": 50.0}
+    for _ in range(3):
+        step.source.read_packed(obs)
+    assert step.source.episode_step == 3
+    built.policy.inference.reset()
+    assert engine_resets == [1] and step.source.episode_step == 0
