@@ -83,6 +83,8 @@ class PhysVLARobotActionStep(ProcessorStep):
         self.corrector = Corrector(self.cfg, 1)
         b = self.corrector.branch_b is not None and self.noise_snr_min > 0
         self.guard = BranchBNoiseGuard(self.noise_snr_min) if b else None
+        if self.guard is not None:
+            self.guard.warm_up(model.n_joints)
         spec = model.spec
         self._keys = [f"{m}.pos" for m in spec.motors]
         self._grip = None if spec.gripper_motor is None else f"{spec.gripper_motor}.pos"
