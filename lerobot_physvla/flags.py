@@ -55,7 +55,8 @@ def _convert(name: str, value: str, hint) -> object:
 # the flags of the robot-side step (lerobot-rollout): PhysVLARobotActionStep's fields
 ROBOT_FLAGS: dict[str, object] = {"arm": str, "object_xyz": tuple[float, ...], "target_xyz": tuple[float, ...],
                                   "object_key": str, "target_key": str, "velocity_cutoff_hz": float,
-                                  "state_delay_s": float, "reading_noise_deg": float, "noise_snr_min": float}
+                                  "state_delay_s": float, "reading_noise_deg": float, "noise_snr_min": float,
+                                  "arm_geometry": bool}
 
 
 def split_argv(argv: list[str], robot: bool = False) -> tuple[str | None, dict[str, object], list[str]]:
@@ -95,12 +96,13 @@ def split_argv(argv: list[str], robot: bool = False) -> tuple[str | None, dict[s
     return post, overrides, rest
 
 
-def build_config(overrides: dict[str, object]) -> PhysVLAConfig:
-    """The configuration the flags ask for (module doc: default preset, paper mode, or preset)."""
+def build_config(overrides: dict[str, object], default: str = DEFAULT_PRESET) -> PhysVLAConfig:
+    """The configuration the flags ask for (module doc: the `default` preset, paper mode, or
+    preset); `default` names the preset used when no flag names one (lerobot-rollout: `arm`)."""
     overrides = dict(overrides)
     name = overrides.pop("preset", None)
     if name is None:
-        name = "paper" if "mode" in overrides else DEFAULT_PRESET
+        name = "paper" if "mode" in overrides else default
     try:
         return preset(name, **overrides)
     except (ValueError, TypeError) as e:

@@ -305,7 +305,13 @@ PRESETS: dict[str, PhysVLAConfig] = {
         veto_reach_m=0.10, place_rule="release_veto", redirect_tol_m=0.02, phase_ref="object",
     ),
 }
+# on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the
+# held object is within 2 cm of the target, flung blocks the simulated SO-101 carried at transport
+# speed (eval/results/so101_faults), so it stays off on arms until a rule that knows the object's
+# speed and height is measured.
+PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), place_rule="decelerate")
 DEFAULT_PRESET = "default"
+ARM_PRESET = "arm"
 
 
 def preset(name: str = DEFAULT_PRESET, **overrides) -> PhysVLAConfig:

@@ -28,7 +28,7 @@ from lerobot.configs import PipelineFeatureType, PolicyFeature
 from lerobot.lerobot_types import EnvTransition, TransitionKey
 from lerobot.processor.pipeline import ProcessorStep, ProcessorStepRegistry
 
-from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, PhysVLAConfig
+from lerobot_physvla.core.config import ARM_PRESET, PRESETS, PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.core.state import field_offsets
 from lerobot_physvla.processor.physvla_processor import _unregister_name_for_saving
@@ -49,8 +49,10 @@ class PhysVLARobotActionStep(ProcessorStep):
         fps: the control rate, Hz (dt = 1 / fps for the joint velocities).
         object_xyz, target_xyz: fixed object / target points in the arm model's frame, m; or
         object_key, target_key: raw-observation keys holding them (a perception step fills them).
-        config: PhysVLAConfig fields (default: the shipped default preset); the action layout is
+        config: PhysVLAConfig fields (default: the `arm` preset, the approach veto alone); the action layout is
             the virtual Cartesian one (robots/joint_targets.py) and Branch B weights task-space.
+        arm_geometry: the approach veto uses the arm's own gripper geometry (ArmSpec.veto_height_m,
+            veto_reach_m) where the arm gives it, in place of the config's (tuned on LIBERO's Panda).
         velocity_cutoff_hz: low-pass cutoff of the joint velocities, Hz (None: unfiltered).
         state_delay_s: the readings' age when they arrive, s; positions are carried forward by it.
         reading_noise_deg: the joint readings' noise std, degrees; None: estimated from the readings.
@@ -65,7 +67,8 @@ class PhysVLARobotActionStep(ProcessorStep):
     target_xyz: list[float] | None = None
     object_key: str | None = None
     target_key: str | None = None
-    config: dict[str, Any] = field(default_factory=lambda: PRESETS[DEFAULT_PRESET].to_dict())
+    config: dict[str, Any] = field(default_factory=lambda: PRESETS[ARM_PRESET].to_dict())
+    arm_geometry: bool = True
     velocity_cutoff_hz: float | None = 5.0
     state_delay_s: float = 0.0
     reading_noise_deg: float | None = None
@@ -79,13 +82,17 @@ class PhysVLARobotActionStep(ProcessorStep):
                                        self.target_key, self.velocity_cutoff_hz, self.state_delay_s,
                                        self.reading_noise_deg)
         self.adapter = JointTargetAdapter(model)
-        self.cfg = PhysVLAConfig.from_dict(self.config).replace(layout=VIRTUAL, weighting="task_space")
+        cfg = PhysVLAConfig.from_dict(self.config).replace(layout=VIRTUAL, weighting="task_space")
+        spec = model.spec
+        if self.arm_geometry:
+            geometry = {k: getattr(spec, k) for k in ("veto_height_m", "veto_reach_m") if getattr(spec, k) is not None}
+            cfg = cfg.replace(**geometry)
+        self.cfg = cfg
         self.corrector = Corrector(self.cfg, 1)
         b = self.corrector.branch_b is not None and self.noise_snr_min > 0
         self.guard = BranchBNoiseGuard(self.noise_snr_min) if b else None
         if self.guard is not None:
             self.guard.warm_up(model.n_joints)
-        spec = model.spec
         self._keys = [f"{m}.pos" for m in spec.motors]
         self._grip = None if spec.gripper_motor is None else f"{spec.gripper_motor}.pos"
         self._to_rad = spec.to_radians
@@ -186,6 +193,7 @@ class PhysVLARobotActionStep(ProcessorStep):
     def get_config(self) -> dict[str, Any]:
         return {"arm": self.arm, "fps": self.fps, "object_xyz": self.object_xyz, "target_xyz": self.target_xyz,
                 "object_key": self.object_key, "target_key": self.target_key, "config": self.config,
+                "arm_geometry": self.arm_geometry,
                 "velocity_cutoff_hz": self.velocity_cutoff_hz, "state_delay_s": self.state_delay_s,
                 "reading_noise_deg": self.reading_noise_deg, "noise_snr_min": self.noise_snr_min}
 

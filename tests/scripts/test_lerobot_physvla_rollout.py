@@ -107,3 +107,18 @@ def test_the_corrector_starts_an_episode_when_lerobot_resets_the_policy(restore_
     assert step.source.episode_step == 3
     built.policy.inference.reset()
     assert engine_resets == [1] and step.source.episode_step == 0
+
+
+def test_on_arms_the_default_is_the_approach_veto_with_the_arms_own_geometry(restore_rollout):
+    from lerobot_physvla.core.config import PRESETS
+
+    activate_rollout(["lerobot-rollout", "--policy.postprocess=physvla", "--physvla.arm=so101",
+                      "--physvla.object_key=block", "--physvla.target_xyz=[0.2,0.1,0.02]"])
+    cfg = restore_rollout.build_rollout_context.step.cfg
+    arm = PRESETS["arm"]
+    assert (cfg.gripper_rule, cfg.place_rule, tuple(cfg.phase_caps)) == ("veto", "decelerate", (0.0, 0.0, 0.0, 0.0))
+    assert (cfg.veto_height_m, cfg.veto_reach_m) == (0.02, 0.05) != (arm.veto_height_m, arm.veto_reach_m)  # SO-101's
+    activate_rollout(["lerobot-rollout", "--policy.postprocess=physvla", "--physvla.arm=so101", "--physvla.arm_geometry=false",
+                      "--physvla.object_key=block", "--physvla.target_xyz=[0.2,0.1,0.02]", "--physvla.preset=default"])
+    cfg = restore_rollout.build_rollout_context.step.cfg
+    assert cfg.place_rule == "release_veto" and (cfg.veto_height_m, cfg.veto_reach_m) == (0.06, 0.10)
