@@ -45,10 +45,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from numba import njit
 from lerobot.lerobot_types import TransitionKey
 
 from lerobot_physvla.sim import libero_sim
-from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.sim.experts import PickPlaceExpert
 from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
@@ -327,6 +328,40 @@ def in_eval(batch: int, episodes: int, policy: Path, out: Path, flags: tuple = (
             "env_step_us_p50": float(np.median(env_steps)) / 1.0}
 
 
+@njit(cache=False)
+def _trivial(a):  # the least a compiled call can do: read one float of one array
+    return a[0]
+
+
+def cold_floor(rows: np.ndarray, actions: np.ndarray, repeats: int = 300) -> dict:
+    """p50 per call, warm (back to back) and cold (after a 64 MB sweep through the caches, as a
+    control tick finds them after the physics step and the policy's forward pass), of the pieces
+    the whole path is made of: a trivial compiled call, a torch tensor's .numpy(), the action's way
+    back (float32 cast + torch.from_numpy), and the corrector's compiled tick (shipped default, B = 1)."""
+    c = Corrector(PRESETS[DEFAULT_PRESET], 1)
+    flat, a = np.ascontiguousarray(rows[:1]), np.ascontiguousarray(actions[:1], dtype=np.float64)
+    t = torch.from_numpy(a.astype(np.float32))
+    junk = np.ones(8_000_000)
+    pieces = {"trivial compiled call": lambda: _trivial(a), "torch tensor .numpy()": lambda: t.numpy(),
+              "float32 cast + torch.from_numpy": lambda: torch.from_numpy(a.astype(np.float32)),
+              "corrector tick (correct_packed)": lambda: c.correct_packed(a, flat)}
+    out = {}
+    for name, fn in pieces.items():
+        fn()
+        res = {}
+        for cold in (False, True):
+            ts = []
+            for _ in range(repeats):
+                if cold:
+                    junk.sum()
+                t0 = time.perf_counter()
+                fn()
+                ts.append(time.perf_counter() - t0)
+            res["cold" if cold else "warm"] = float(np.median(ts)) * 1e6
+        out[name] = res
+    return out
+
+
 def _rss_bytes() -> int:
     return int(Path("/proc/self/statm").read_text().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
@@ -483,6 +518,18 @@ def main() -> None:
         f"the first no-op call {fc['noop_first_call_us']:.0f} us.\n",
     ]
     print(lines[-1].strip(), flush=True)
+
+    floor = cold_floor(rows, actions)
+    results["cold_floor"] = floor
+    lines += ["\n## The cold-cache floor (why the in-lerobot-eval rows cost more than the warm ones)\n",
+              "p50 per call, warm (back to back) and cold (after a 64 MB sweep through the caches, as a control tick "
+              "finds them after the physics step and the policy's forward pass). The whole path makes about a dozen "
+              "such calls (the state read's compiled copy and MuJoCo's Jacobian, the tensor conversions, the "
+              "corrector's tick, the recorder's compiled row write).\n",
+              "| piece | warm p50 (us) | cold p50 (us) | cold / warm |", "|---|---|---|---|"]
+    for name, r in floor.items():
+        lines.append(f"| {name} | {r['warm']:.1f} | {r['cold']:.1f} | {r['cold'] / r['warm']:.1f} |")
+    print("\n".join(lines[-len(floor) - 2:]), flush=True)
 
     mem = memory(rows, actions, args.memory_steps)
     results["memory"] = mem
