@@ -58,7 +58,8 @@ class PhysVLARobotActionStep(ProcessorStep):
         reading_noise_deg: the joint readings' noise std, degrees; None: estimated from the readings.
         noise_snr_min: with Branch B (mode phys_el), it runs on a tick only when its residual is at
             least this many times the residual's noise std (robots/noise_guard.py); 0: always.
-        branch_b_off: Counter of the reasons Branch B was off on a tick (noise_unknown, noise_dominated).
+        branch_b_off: Counter of the reasons Branch B was off on a tick (noise_unknown, noise_dominated,
+            guard_error).
     """
 
     arm: str = "so101"
@@ -159,6 +160,10 @@ class PhysVLARobotActionStep(ProcessorStep):
             self._guard_branch_b(row, a_raw, j_pos)
         a_out = self.corrector.correct_packed(a_raw[None], row[None])[0]
         q_new, g_new = self.adapter.from_virtual(a_out, a_raw, q_t, g_r, j_pos)
+        if (q_new is not None and not np.isfinite(q_new).all()) or (g_new is not None and not math.isfinite(g_new)):
+            self._warn("nonfinite_correction", "the correction mapped back to the joints is not finite; the policy's "
+                       "action passes")
+            return dict(action)
         out = dict(action)
         if q_new is not None:
             for k, v in zip(self._keys, q_new / self._to_rad):
@@ -172,9 +177,12 @@ class PhysVLARobotActionStep(ProcessorStep):
         f, n, src = self._f, self._n, self.source
         dt = row[f["dt"]]
         v = a_raw[list(VIRTUAL.pos)] * (VIRTUAL.metres_per_unit / dt)  # m/s, as Branch B reads it
-        why = self.guard.check(row[f["M"] : f["M"] + n * n].reshape(n, n), j_pos, row[f["qdot"] : f["qdot"] + n],
-                               row[f["bias"] : f["bias"] + n], row[f["tau"] : f["tau"] + n], v, dt,
-                               self.cfg.dls_damping, src.reading_noise_rad, src.velocity_noise_rad_s)
+        try:
+            why = self.guard.check(row[f["M"] : f["M"] + n * n].reshape(n, n), j_pos, row[f["qdot"] : f["qdot"] + n],
+                                   row[f["bias"] : f["bias"] + n], row[f["tau"] : f["tau"] + n], v, dt,
+                                   self.cfg.dls_damping, src.reading_noise_rad, src.velocity_noise_rad_s)
+        except Exception:  # noqa: BLE001 - the guard cannot judge this tick: Branch B off, Branch A still runs
+            why = "guard_error"
         self.corrector.set_branch_b(why is None)
         if why is not None:
             self.branch_b_off[why] += 1

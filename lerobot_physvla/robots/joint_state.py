@@ -155,6 +155,8 @@ class JointStateSource:
     def _read(self, observation: dict) -> np.ndarray:
         spec, f = self.arm.spec, self._f
         q = np.array([float(observation[k]) for k in self._keys]) * spec.to_radians
+        if not np.isfinite(q).all():  # skipped: it must not poison the velocity filter or the noise estimate
+            raise ValueError(f"non-finite joint reading {q.tolist()}")
         self._track_noise(q)
         if self._q_prev is None:
             self._qdot[:] = 0.0
@@ -189,5 +191,7 @@ class JointStateSource:
         row[f["M"] : f["M"] + n * n] = dyn["M"].ravel()
         row[f["tau"] : f["tau"] + n] = dyn["bias"]  # no torque sensing: the arm held where it is
         row[f["J_pos"] : f["J_pos"] + 3 * n] = dyn["J_pos"].ravel()
+        if not np.isfinite(row).all():  # a reading out of this world (inf, NaN): no state to correct from
+            row[f["valid"]] = 0.0
         self.episode_step += 1
         return row

@@ -103,3 +103,25 @@ def test_its_configuration_round_trips():
     step = PhysVLARobotActionStep(arm="so101", fps=15.0, object_key="object.pos", target_xyz=[0.3, -0.2, 0.0])
     again = PhysVLARobotActionStep(**step.get_config())
     assert again.get_config() == step.get_config() and again.source.dt == pytest.approx(1 / 15)
+
+
+def test_with_branch_b_and_its_guard_any_reading_gives_finite_targets_and_branch_a_still_acts(monkeypatch):
+    """phys_el on the arm: extreme or broken readings never raise and never emit a non-finite target;
+    a guard that fails turns Branch B off for the tick (counted) while the gripper veto still acts."""
+    from lerobot_physvla.core.config import PhysVLAConfig
+
+    step = PhysVLARobotActionStep(arm="so101", object_xyz=[0.1, 0.3, 0.0], target_xyz=[0.3, -0.2, 0.0],
+                                  config=PhysVLAConfig(mode="phys_el", gripper_rule="veto").to_dict())
+    p = pipeline(step)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for deg in ((0, 0, 0, 0, 0), (1e6, -1e6, 3e5, 0, 0), (float("inf"), 0, 0, 0, 0), (float("nan"),) * 5,
+                    (179.9, -179.9, 90, -90, 45)):
+            out = p((act(), obs(deg=deg)))
+            assert all(np.isfinite(out[k]) for k in act()), (deg, out)
+        monkeypatch.setattr(step.guard, "check", lambda *a, **k: 1 / 0)
+        out = p((act(gripper=0.0), obs()))
+    assert step.branch_b_off["guard_error"] == 1 and not step.corrector._b_on
+    assert out["gripper.pos"] == 100.0  # the close 0.3 m from the object is still vetoed

@@ -117,3 +117,15 @@ def test_reading_noise_is_estimated_and_the_velocity_noise_follows_the_filter(cu
     np.testing.assert_allclose(fixed.reading_noise_rad, np.deg2rad(0.1))
     with pytest.raises(ArmError, match="reading_noise_deg"):
         JointStateSource("so101", dt=1 / 30, object_xyz=(0.2, 0, 0), target_xyz=(0.2, 0.1, 0), reading_noise_deg=-1.0)
+
+
+def test_a_non_finite_reading_is_skipped_and_does_not_poison_what_follows():
+    src = JointStateSource("so101", dt=1 / 30, object_xyz=(0.2, 0, 0), target_xyz=(0.2, 0.1, 0))
+    src.read_packed(so101_obs(np.zeros(5)))
+    with pytest.warns(RuntimeWarning, match="reading the arm's state failed"):
+        bad = PhysState.unpack(src.read_packed(so101_obs([float("inf"), 0, 0, 0, 0])))
+    assert bad.valid[0] == 0.0 and src.failures["ValueError"] == 1
+    for t in range(1, 12):  # the readings come back: valid, finite velocities, a finite noise estimate
+        st = PhysState.unpack(src.read_packed(so101_obs(np.full(5, 0.5 * t))))
+    assert st.valid[0] == 1.0 and np.isfinite(st.pack()).all() and np.isfinite(src.reading_noise_rad).all()
+    np.testing.assert_allclose(st.qdot[0], np.deg2rad(0.5 * 30), rtol=0.05)  # 0.5 deg per tick at 30 Hz
