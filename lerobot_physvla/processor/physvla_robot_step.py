@@ -38,6 +38,13 @@ from lerobot_physvla.robots.joint_targets import VIRTUAL, JointTargetAdapter
 from lerobot_physvla.robots.noise_guard import BranchBNoiseGuard
 
 
+def _finite(v) -> bool:
+    try:
+        return math.isfinite(float(v))
+    except (TypeError, ValueError):
+        return False
+
+
 @_unregister_name_for_saving
 @ProcessorStepRegistry.register("physvla_robot_corrector")
 @dataclass
@@ -100,7 +107,14 @@ class PhysVLARobotActionStep(ProcessorStep):
         f = field_offsets(model.n_joints)
         self._eef, self._valid, self._j, self._n = f["eef_pos"], f["valid"], f["J_pos"], model.n_joints
         self._f = f
+        m = model.model
+        ids = [m.joint(j).id for j in spec.joints]
+        limited = m.jnt_limited[ids].astype(bool) & (m.jnt_range[ids, 0] < m.jnt_range[ids, 1])
+        self._q_lo = np.where(limited, m.jnt_range[ids, 0], -np.inf)  # rad
+        self._q_hi = np.where(limited, m.jnt_range[ids, 1], np.inf)
         self._checked = False
+        self._all_keys = self._keys + ([self._grip] if self._grip else [])
+        self._last: dict[str, float] = {}  # the targets this step sent last (the hold where nothing else is finite)
 
     def _warn(self, why: str, detail: str) -> None:
         self.passthrough_counts[why] += 1
@@ -128,21 +142,29 @@ class PhysVLARobotActionStep(ProcessorStep):
         except Exception as e:  # noqa: BLE001 - do-no-harm: the corrector never stops a rollout
             self._warn("corrector_error", f"{type(e).__name__}: {e}")
             out = self._held(action, observation)
+        out = self._held(out, observation)  # the last net: nothing non-finite reaches the robot
+        self._last = {k: out[k] for k in self._all_keys}
         new = dict(transition)
         new[TransitionKey.ACTION] = out
         return new
 
     def _held(self, action: dict, observation: dict) -> dict:
-        """The policy's action with every non-finite target replaced by the joint's current reading."""
-        out = dict(action)
-        for k in self._keys + ([self._grip] if self._grip else []):
-            try:
-                ok = math.isfinite(float(out[k]))
-            except (TypeError, ValueError, KeyError):
-                ok = False
-            if not ok:
-                out[k] = float(observation.get(k, 0.0))
-        return out
+        """The action with every non-finite (or unreadable) target replaced by the joint's current
+        reading, or where that is not finite either, by the target this step sent last. On the first
+        call, with neither, ArmError (no action has reached the robot yet)."""
+        out = None
+        for k in self._all_keys:
+            if _finite(action.get(k)):
+                continue
+            out = dict(action) if out is None else out
+            if _finite(observation.get(k)):
+                out[k] = float(observation[k])
+            elif k in self._last:
+                out[k] = self._last[k]
+            else:
+                raise ArmError(f"physvla: {k} has no finite value in the policy's action ({action.get(k)!r}) nor in "
+                               f"the robot's reading ({observation.get(k)!r}); nothing safe to send")
+        return action if out is None else out
 
     def _correct(self, action: dict, observation: dict) -> dict:
         q_t = np.array([float(action[k]) for k in self._keys]) * self._to_rad
@@ -165,9 +187,12 @@ class PhysVLARobotActionStep(ProcessorStep):
                        "action passes")
             return dict(action)
         out = dict(action)
-        if q_new is not None:
-            for k, v in zip(self._keys, q_new / self._to_rad):
-                out[k] = float(v)
+        if q_new is not None:  # a joint the correction moved, and only those, inside the model's range
+            moved = q_new != q_t
+            q_new = np.clip(q_new, self._q_lo, self._q_hi) / self._to_rad
+            for k, v, m in zip(self._keys, q_new, moved):
+                if m:
+                    out[k] = float(v)
         if g_new is not None:
             out[self._grip] = float(np.clip(g_new, 0.0, self.source.arm.spec.gripper_full_scale))
         return out
