@@ -138,9 +138,35 @@ def efficacy_table() -> list[str]:
     return lines
 
 
+def robot_table() -> list[str]:
+    """The corrector on the simulated SO-101 through lerobot's robot action processor (paired)."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "eval"))
+    import so101_faults as sf
+
+    recs = _records("so101_faults")
+    if not recs:
+        return []
+    lines = ["**Simulated SO-101 through lerobot's robot action processor: a scripted pick-and-place expert** "
+             "([eval/results/so101_faults](eval/results/so101_faults/README.md)): success uncorrected -> corrected, "
+             "paired difference [95 % CI], n = 50 draws per block\n",
+             "| expert | preset | design block (seeds 0-49) | confirmation block (seeds 1000-1049) |", "|---|---|---|---|"]
+    for mode in sf.MODES:
+        for preset in sf.PRESET_RUNS:
+            cells = []
+            for seeds in sf.BLOCKS.values():
+                p = sf.paired(recs, mode, seeds, preset)
+                cells.append(f"{p['base']:.0%} -> {p['this']:.0%} ({p['diff'] * 100:+.0f} pp [{p['ci'][0] * 100:+.0f}, "
+                             f"{p['ci'][1] * 100:+.0f}])" if p["n"] else "not run")
+            lines.append(f"| {mode} | {preset} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def block() -> str:
     lines = [START, ""]
     lines += efficacy_table()
+    lines += robot_table()
     lines += success_table("table2", "LIBERO-Spatial, scripted backbones x modes (10 tasks x 5 seeds)")
     lines += success_table("learned", "LIBERO-Spatial, learned backbones (LeRobot ACT / Diffusion, state inputs) x modes")
     lines += sweep_table("lift_sweep", "robosuite Lift, grasp-phase noise sweep (20 trials per cell)")
