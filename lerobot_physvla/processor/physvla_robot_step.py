@@ -17,6 +17,7 @@ still), an unreadable state or any error passes the policy's action through; eac
 from __future__ import annotations
 
 import math
+import time
 import warnings
 from collections import Counter
 from dataclasses import dataclass, field
@@ -36,6 +37,9 @@ from lerobot_physvla.robots.arms import ArmError, ArmModel
 from lerobot_physvla.robots.joint_state import JointStateSource
 from lerobot_physvla.robots.joint_targets import VIRTUAL, JointTargetAdapter
 from lerobot_physvla.robots.noise_guard import BranchBNoiseGuard
+
+
+TIMES_KEPT = 10_000  # ticks whose times summary() takes its percentiles over
 
 
 def _finite(v) -> bool:
@@ -67,6 +71,8 @@ class PhysVLARobotActionStep(ProcessorStep):
             least this many times the residual's noise std (robots/noise_guard.py); 0: always.
         branch_b_off: Counter of the reasons Branch B was off on a tick (noise_unknown, noise_dominated,
             guard_error).
+        ticks, changed: control ticks seen, and how many changed the gripper / joint targets
+            (`summary()` reports them with the step's time per tick).
     """
 
     arm: str = "so101"
@@ -115,6 +121,9 @@ class PhysVLARobotActionStep(ProcessorStep):
         self._checked = False
         self._all_keys = self._keys + ([self._grip] if self._grip else [])
         self._last: dict[str, float] = {}  # the targets this step sent last (the hold where nothing else is finite)
+        self.ticks = 0
+        self.changed: Counter = Counter()
+        self._t_us = np.zeros(TIMES_KEPT)  # the last TIMES_KEPT ticks' times (us), a ring: memory stays flat
 
     def _warn(self, why: str, detail: str) -> None:
         self.passthrough_counts[why] += 1
@@ -137,6 +146,7 @@ class PhysVLARobotActionStep(ProcessorStep):
             return transition
         if not self._checked:
             self._check(action, observation)  # before any action reaches the robot: may raise
+        t0 = time.perf_counter()
         try:
             out = self._correct(action, observation)
         except Exception as e:  # noqa: BLE001 - do-no-harm: the corrector never stops a rollout
@@ -144,6 +154,7 @@ class PhysVLARobotActionStep(ProcessorStep):
             out = self._held(action, observation)
         out = self._held(out, observation)  # the last net: nothing non-finite reaches the robot
         self._last = {k: out[k] for k in self._all_keys}
+        self._tally(action, out, time.perf_counter() - t0)
         new = dict(transition)
         new[TransitionKey.ACTION] = out
         return new
@@ -215,6 +226,29 @@ class PhysVLARobotActionStep(ProcessorStep):
                 warnings.warn(f"physvla: Branch B off on this tick ({why}: |r_EL| / noise = {self.guard.last_snr:.2f}, "
                               f"below noise_snr_min={self.noise_snr_min}); counted in branch_b_off",
                               RuntimeWarning, stacklevel=5)
+
+    def _tally(self, action: dict, out: dict, seconds: float) -> None:
+        """Counts for `summary()`: ticks, ticks whose gripper / joint targets changed, the step's time."""
+        self.ticks += 1
+        if self._grip and out[self._grip] != action.get(self._grip):
+            self.changed["gripper"] += 1
+        if any(out[k] != action.get(k) for k in self._keys):
+            self.changed["joints"] += 1
+        self._t_us[self.ticks % len(self._t_us)] = seconds * 1e6
+
+    def summary(self) -> str:
+        """One line: what the step did over the rollout (printed by lerobot-rollout's hook at exit)."""
+        if not self.ticks:
+            return "physvla: no control tick reached the corrector"
+        t = self._t_us[: min(self.ticks, len(self._t_us))]
+        p50, p99 = np.percentile(t, [50, 99])
+        fmt = lambda c: ", ".join(f"{k} {v}" for k, v in sorted(c.items())) or "none"  # noqa: E731
+        c = self.cfg
+        return (f"physvla: {self.ticks} ticks on arm {self.arm!r} (mode {c.mode}, gripper rule {c.gripper_rule}, "
+                f"place rule {c.place_rule}); "
+                f"gripper target changed on {self.changed['gripper']}, joint targets on {self.changed['joints']}; "
+                f"passed through: {fmt(self.passthrough_counts)}; Branch B off: {fmt(self.branch_b_off)}; "
+                f"time per tick p50 {p50:.0f} us, p99 {p99:.0f} us")
 
     def reset(self) -> None:
         """An episode starts: the state source and the corrector's memory start afresh."""

@@ -18,6 +18,7 @@ command line overriding its fields.
 
 from __future__ import annotations
 
+import atexit
 import sys
 from pathlib import Path
 
@@ -155,3 +156,10 @@ def install_rollout_hook(step) -> None:
     build_rollout_context._physvla = True
     build_rollout_context.step = step
     lerobot_rollout.build_rollout_context = build_rollout_context
+    atexit.register(_print_summary, build_rollout_context)
+
+
+def _print_summary(hook) -> None:
+    """At exit of a lerobot-rollout that ran the corrector: one line of what it did."""
+    if hook.step.ticks:
+        print(f"lerobot-{hook.step.summary()}", file=sys.stderr)

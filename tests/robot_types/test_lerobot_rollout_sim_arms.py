@@ -39,6 +39,13 @@ def test_lerobot_rollout_with_the_corrector_executes_the_corrected_targets(tmp_p
                            capture_output=True, text=True, timeout=300, cwd=tmp_path)
         assert r.returncode == 0, r.stderr[-3000:]
         logs[name] = [json.loads(line) for line in log.read_text().splitlines()]
+        summary = [line for line in r.stderr.splitlines() if line.startswith("lerobot-physvla: ")]
+        if name == "corrected":  # at exit, one line of what the corrector did
+            n = len(logs[name])
+            assert any(f"physvla: {n} ticks on arm '{arm}'" in line and f"gripper target changed on {n}," in line
+                       for line in summary), r.stderr[-2000:]
+        else:
+            assert not summary
     assert len(logs["corrected"]) >= 10 and len(logs["raw"]) >= 10
     assert all(a["gripper.pos"] == 100.0 for a in logs["corrected"])
     assert max(a["gripper.pos"] for a in logs["raw"]) < 50.0  # the policy's own command: closing
