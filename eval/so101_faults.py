@@ -1,8 +1,8 @@
 """The corrector on the simulated SO-101 through lerobot's robot action processor: a scripted
 pick-and-place expert (lerobot-env-so101's controller, joint targets) with and without its failure
-modes, uncorrected vs corrected with the `arm` preset (lerobot-rollout's default: the approach veto)
-and with the `default` preset (lerobot-eval's: the approach veto and the release veto), paired on
-the same block / goal draws.
+modes (premature close, early release, a persistent place bias of 3-6 cm), uncorrected vs corrected
+with the `arm` preset (lerobot-rollout's default: the approach veto) and with the `default` preset
+(lerobot-eval's: the approach veto and the release veto), paired on the same block / goal draws.
 
     .venv/bin/python eval/so101_faults.py [--episodes 50] [--out eval/results/so101_faults]
 
@@ -45,7 +45,8 @@ from lerobot_physvla.sim.so101_expert import ARM, CONTROL_HZ, SO101ExpertConfig,
 
 BOX = (np.array([0.15, -0.1]), np.array([0.3, 0.1]))  # lerobot-env-so101's pick-and-place sampling box
 MODES = {"clean": SO101ExpertConfig(), "premature close": SO101ExpertConfig(premature_close=1.0),
-         "early release": SO101ExpertConfig(early_release=1.0)}
+         "early release": SO101ExpertConfig(early_release=1.0),
+         "place bias": SO101ExpertConfig(place_bias_m=0.06)}
 BLOCKS = {"design": range(0, 50), "confirmation": range(1000, 1050)}
 PRESET_RUNS = ("arm", "default")  # corrected runs, each paired with the uncorrected one
 TICKS = 200

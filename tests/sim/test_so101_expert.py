@@ -19,10 +19,12 @@ from lerobot_physvla.sim.so101_expert import CONTROL_HZ, SO101ExpertConfig, SO10
 BLOCK, GOAL = [0.25, -0.05, 0.02], [0.18, 0.06, 0.02]
 
 
-def _run(tmp_path, cfg=None, corrected=False, ticks=200):
+def _run(tmp_path, cfg=None, corrected=False, ticks=200, expert_out=None):
     robot = SimSO101(SimSO101Config(fps=CONTROL_HZ, block_xyz=BLOCK, calibration_dir=tmp_path))
     robot.connect()
     expert = SO101PickPlaceExpert(GOAL, cfg)
+    if expert_out is not None:
+        expert_out.append(expert)
     proc = None
     if corrected:
         step = PhysVLARobotActionStep(arm="so101", fps=CONTROL_HZ, object_key="block", target_xyz=GOAL)
@@ -40,6 +42,8 @@ def _run(tmp_path, cfg=None, corrected=False, ticks=200):
         if expert.phase.name == "DONE":
             break
     obs = robot.get_observation()
+    if expert_out is not None:
+        expert_out.append(np.array([obs["block.x"], obs["block.y"]]))
     placed = top > 0.05 and np.hypot(obs["block.x"] - GOAL[0], obs["block.y"] - GOAL[1]) < 0.03
     return placed, sent
 
@@ -67,3 +71,12 @@ def test_faults_are_drawn_per_episode_from_the_seed():
     assert again.faults["premature_close"] == draws[0] and 10 < sum(draws) < 30
     with pytest.raises(KeyError):
         expert({"shoulder_pan.pos": 0.0})  # not an SO-101 observation
+
+
+def test_a_place_bias_sets_the_block_down_where_the_expert_aims(tmp_path):
+    got = []
+    placed, _ = _run(tmp_path, SO101ExpertConfig(place_bias_m=0.06, seed=1), expert_out=got)
+    expert, block_xy = got
+    bias = np.linalg.norm(expert._aim[:2] - np.asarray(GOAL[:2]))
+    assert 0.03 <= bias <= 0.06
+    assert np.linalg.norm(block_xy - expert._aim[:2]) < 0.01  # it placed where it aimed, off the goal
