@@ -132,8 +132,7 @@ class PhysVLARobotActionStep(ProcessorStep):
 
     def _check(self, action: dict, observation: dict) -> None:
         self.source.check(observation)
-        need = self._keys + ([self._grip] if self._grip else [])
-        missing = [k for k in need if k not in action]
+        missing = [k for k in self._all_keys if k not in action]
         if missing:
             raise ArmError(f"physvla: arm {self.arm!r} corrects {missing}, which the policy's action lacks (it has "
                            f"{sorted(action)}); map the robot's motors in ArmSpec.motors")

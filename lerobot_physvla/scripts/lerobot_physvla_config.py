@@ -24,7 +24,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from lerobot_physvla.core.config import DEFAULT_PRESET, MODES, PRESETS, PhysVLAConfig
+from lerobot_physvla.core.config import ARM_PRESET, DEFAULT_PRESET, MODES, PRESETS, PhysVLAConfig
 
 POSTPROCESSOR = "policy_postprocessor.json"
 
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> None:
         overrides["preset"] = args.preset
     robot = {k: overrides.pop(k) for k in ROBOT_FLAGS if k in overrides}
     try:
-        cfg = build_config(overrides, default="arm" if robot else DEFAULT_PRESET)
+        cfg = build_config(overrides, default=ARM_PRESET if robot else DEFAULT_PRESET)
     except FlagError as e:
         print(f"lerobot-physvla-config: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None
