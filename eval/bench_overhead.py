@@ -333,18 +333,35 @@ def _trivial(a):  # the least a compiled call can do: read one float of one arra
     return a[0]
 
 
+@njit(cache=False)
+def _trivial8(a0, a1, a2, a3, a4, a5, a6, a7):  # the same with 8 array arguments (stream_tick has 8)
+    return a0[0]
+
+
+@njit(cache=False)
+def _trivial21(a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11, a12, a13, a14, a15, a16, a17, a18, a19, a20):
+    return a0[0]  # 21 array arguments, as the tick and the read had before they took arenas
+
+
 def cold_floor(rows: np.ndarray, actions: np.ndarray, repeats: int = 300) -> dict:
     """p50 per call, warm (back to back) and cold (after a 64 MB sweep through the caches, as a
     control tick finds them after the physics step and the policy's forward pass), of the pieces
-    the whole path is made of: a trivial compiled call, a torch tensor's .numpy(), the action's way
-    back (float32 cast + torch.from_numpy), and the corrector's compiled tick (shipped default, B = 1)."""
+    the whole path is made of: a trivial compiled call (with 1, 8 and 21 array arguments), a torch
+    tensor's .numpy(), the action's way back (float32 cast + torch.from_numpy), and the corrector's
+    compiled tick (shipped default, B = 1) as correct_packed and as the LeRobot step's correct_stream."""
     c = Corrector(PRESETS[DEFAULT_PRESET], 1)
     flat, a = np.ascontiguousarray(rows[:1]), np.ascontiguousarray(actions[:1], dtype=np.float64)
     t = torch.from_numpy(a.astype(np.float32))
     junk = np.ones(8_000_000)
-    pieces = {"trivial compiled call": lambda: _trivial(a), "torch tensor .numpy()": lambda: t.numpy(),
+    arrays = [np.zeros((2, 3)) for _ in range(21)]
+    a32 = a.astype(np.float32)
+    pieces = {"trivial compiled call": lambda: _trivial(a),
+              "trivial compiled call, 8 array arguments": lambda: _trivial8(a, *arrays[:7]),
+              "trivial compiled call, 21 array arguments": lambda: _trivial21(a, *arrays[:20]),
+              "torch tensor .numpy()": lambda: t.numpy(),
               "float32 cast + torch.from_numpy": lambda: torch.from_numpy(a.astype(np.float32)),
-              "corrector tick (correct_packed)": lambda: c.correct_packed(a, flat)}
+              "corrector tick (correct_packed)": lambda: c.correct_packed(a, flat),
+              "corrector stream tick (correct_stream, float32 in and out)": lambda: c.correct_stream(a32, flat)}
     out = {}
     for name, fn in pieces.items():
         fn()
@@ -523,9 +540,12 @@ def main() -> None:
     results["cold_floor"] = floor
     lines += ["\n## The cold-cache floor (why the in-lerobot-eval rows cost more than the warm ones)\n",
               "p50 per call, warm (back to back) and cold (after a 64 MB sweep through the caches, as a control tick "
-              "finds them after the physics step and the policy's forward pass). The whole path makes about a dozen "
-              "such calls (the state read's compiled copy and MuJoCo's Jacobian, the tensor conversions, the "
-              "corrector's tick, the recorder's compiled row write).\n",
+              "finds them after the physics step and the policy's forward pass). A cold compiled call costs more the "
+              "more array arguments it unboxes, so the state read (`pack_live_buf`: the row, one view of the MjData "
+              "buffer, an int arena, the header constants) and the LeRobot step's tick (`correct_stream`: the action, "
+              "the state, three arenas, the recorder's rows, the extras, the row index) each take all they need in "
+              "one call with few arguments; what remains is the tensor conversions at the step's two ends and "
+              "lerobot's own Python around them (docs/method.md \"Speed\").\n",
               "| piece | warm p50 (us) | cold p50 (us) | cold / warm |", "|---|---|---|---|"]
     for name, r in floor.items():
         lines.append(f"| {name} | {r['warm']:.1f} | {r['cold']:.1f} | {r['cold'] / r['warm']:.1f} |")

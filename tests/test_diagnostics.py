@@ -102,3 +102,53 @@ def test_finished_batches_are_compacted_with_the_same_records_and_flat_memory():
         rec.apply_env_successes({-1: [True] + [False] * 83})
     assert compact.records()[0]["success"] and compact.records()[0]["efficiency"] == 0.5
     assert json.dumps(full.summary(), sort_keys=True) == json.dumps(compact.summary(), sort_keys=True)  # NaN-aware
+
+
+def test_the_one_call_recording_equals_the_recorders_own_call():
+    """lerobot-eval's path (Corrector.correct_stream writes the row in its compiled call) against
+    the recorder's own call: the same actions out and the same records, over rows past the first
+    capacity (64), two rollout batches, an env that restarts alone, extras with a success and
+    float32 actions."""
+    import torch
+    from lerobot.lerobot_types import TransitionKey
+
+    from lerobot_physvla.core.config import LAYOUTS
+    from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep, get_bus
+
+    lay = LAYOUTS["libero_osc_pose"]
+    cfg = PhysVLAConfig(mode="phys_el", cap=1.0).to_dict()
+    fast, slow = EpisodeRecorder(layout=lay, keep_steps=None), EpisodeRecorder(layout=lay, keep_steps=None)
+    steps = {}
+    for name, rec in (("fast", fast), ("slow", slow)):
+        step = PhysVLACorrectorStep(config=cfg, bus=f"rows-{name}")
+        step.listeners.append(rec if name == "fast" else (lambda *a, rec=rec: rec(*a)))  # no stream_rows: own call
+        steps[name] = step
+    rng = np.random.default_rng(3)
+    outs = {"fast": [], "slow": []}
+    counters = np.zeros(3)
+    for batch in range(2):
+        counters[:] = 0
+        for t in range(90):
+            if t == 50:
+                counters[1] = 0  # env 1 restarts alone (its episode ended mid-batch)
+            st = make_state(batch_size=3, obj=(0.02 * (90 - t) / 3, 0.0, 0.9), seed=t)
+            st.episode_step[:] = counters
+            extra = np.zeros((3, 9))
+            extra[:, 0] = [4, 5, 6]
+            extra[2, 1] = t == 70  # env 2 succeeds at step 70
+            extra[:, 2:] = rng.uniform(-1, 1, (3, 7))
+            raw = torch.from_numpy(rng.uniform(-1.2, 1.2, (3, 7)).astype(np.float32))
+            for name, step in steps.items():
+                get_bus(f"rows-{name}").publish(st.pack(), torch.from_numpy(extra))
+                outs[name].append(step({TransitionKey.ACTION: raw})[TransitionKey.ACTION])
+            counters += 1
+    assert fast._seg.n == slow._seg.n == 90 and len(fast._seg.t_us) == 128  # grown past 64 once
+    for a, b in zip(outs["fast"], outs["slow"]):
+        assert a.dtype == torch.float32 and torch.equal(a, b)
+    ra, rb = fast.records(), slow.records()
+    assert len(ra) == len(rb) == 8  # 3 envs x 2 batches + env 1's second episode in each
+    for x, y in zip(ra, rb):
+        for key, value in x.items():
+            if not key.startswith("overhead"):  # the call times differ
+                assert value == y[key] or (value != value and y[key] != y[key]), key
+    assert sum(r["success"] for r in ra) == 2

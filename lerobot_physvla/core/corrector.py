@@ -40,13 +40,15 @@ from lerobot_physvla.core.state import (
 from lerobot_physvla.core.tick import (
     D_DEV, D_GUARD, D_LIFT, D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, FP_B, FP_CAP, FP_CAPS, FP_D_GRASP,
     FP_GRIP_OPEN, FP_H_LIFT, FP_HIGH, FP_LOW, FP_LP, FP_VETO, IP_B, IP_BASELINE, IP_BRANCH_B, IP_FLAGS, IP_GRIP,
-    IP_LOWPASS, IP_LP_MASK, IP_N, IP_PHASE, IP_POS, IP_TEMPORAL, IP_VETO, N_DIAG, N_FP, N_IP, correct_tick,
-    record_tick,
+    EPISODE_STEP, IP_LOWPASS, IP_LP_MASK, IP_N, IP_PHASE, IP_POS, IP_TEMPORAL, IP_VETO, N_DIAG, N_FP, N_IP, N_W,
+    W_DIAG, W_EP, W_FP, W_HAS, W_HOLD, W_LAST, W_LP, W_MEM, W_NLP, W_NMEM, W_NPA, W_PA, W_ABS, correct_tick,
+    record_tick, stream_tick,
 )
 
 
 
 _NAN = float("nan")
+_STREAM_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))  # action dtypes stream_tick is compiled for
 
 
 @dataclass
@@ -116,27 +118,51 @@ class Corrector:
         self.steps = 0
         self._pos = lay.pos_index
         self._grip = -1 if lay.gripper is None else lay.gripper
-        self._idx = channel_index(lay)
-        self._p_a = params(self.cfg, lay)
-        self._mem = np.zeros((b, N_MEM))  # per-env memory of the corrections (EMA), corrections/base.py
-        self._lp_mem = np.zeros((b, N_LP_MEM))  # per-env memory of the adaptive low-pass (lowpass.py)
-        self._absolute = lay.absolute_mask
-        self._hold0 = lay.hold()
-        self._last_out = np.zeros((b, lay.dim))  # the action each env emitted last (the hold of absolute channels)
-        self._has_last = np.zeros(b, np.bool_)
         self._flat_width, self._n = -1, 0  # packed-state width last seen and its joint count
         self._params: dict[int, np.ndarray] = {}  # joint count -> integer parameters of the tick (tick.py)
-        self._fp = self._float_params()
-        # diagnostics of the latest committed step, written in place by the kernel (columns: tick.py)
-        self.diag_buffer = np.zeros((b, N_DIAG + lay.dim))
+        self._arenas(b, channel_index(lay), params(self.cfg, lay), lay.hold(), lay.absolute_mask)
+        self._fp[:] = self._float_params()
         self.diag_buffer[:, D_PHASE] = -1
         self.diag_buffer[:, D_R_EL : D_R_ENERGY + 1] = np.nan
+        self._ep_last[:] = np.nan  # each env's episode_step at its last streamed call (NaN: none yet)
+        # correct_stream with no recording: a row array that is never written, no extras
+        self._no_rows = (np.zeros((1, 1, 1)), np.zeros((b, 0)))
         self._warned: set[str] = set()
         self._diag: StepDiagnostics | None = None  # built from the buffers when `last` is read
         self._has_diag = False
         self._t_a = self._t_b = self._t_total = 0.0
         if warmup and self._warm_key() not in Corrector._warm:
             self.warm_up()
+
+    def _arenas(self, b: int, idx: np.ndarray, p_a: np.ndarray, hold0: np.ndarray, absolute: np.ndarray) -> None:
+        """The corrector's arrays as views into three arenas, so that stream_tick takes three
+        arguments for all of them (tick.py, W_*): float64 fws (fp, p_a, hold0, Branch A memory,
+        low-pass memory, last action, diagnostics, ep_last), int64 iws (offsets, the tick's
+        integer parameters, the channel index), bool bws (absolute channels, has_last)."""
+        a_dim = len(hold0)
+        sizes = (("_fp", N_FP, None), ("_p_a", len(p_a), None), ("_hold0", a_dim, None), ("_mem", b * N_MEM, N_MEM),
+                 ("_lp_mem", b * N_LP_MEM, N_LP_MEM), ("_last_out", b * a_dim, a_dim),
+                 ("diag_buffer", b * (N_DIAG + a_dim), N_DIAG + a_dim), ("_ep_last", b, None))
+        self._fws = np.zeros(sum(n for _, n, _ in sizes))
+        self._iws = np.zeros(N_W + N_IP + len(idx), np.int64)
+        self._bws = np.zeros(a_dim + b, np.bool_)
+        offsets, o = {}, 0
+        for name, n, width in sizes:
+            view = self._fws[o : o + n]
+            setattr(self, name, view if width is None else view.reshape(b, width))
+            offsets[name], o = o, o + n
+        w = self._iws
+        w[W_FP], w[W_PA], w[W_NPA], w[W_HOLD] = offsets["_fp"], offsets["_p_a"], len(p_a), offsets["_hold0"]
+        w[W_MEM], w[W_NMEM], w[W_LP], w[W_NLP] = offsets["_mem"], N_MEM, offsets["_lp_mem"], N_LP_MEM
+        w[W_LAST], w[W_DIAG], w[W_EP], w[W_ABS], w[W_HAS] = (offsets["_last_out"], offsets["diag_buffer"],
+                                                             offsets["_ep_last"], 0, a_dim)
+        self._p_a[:], self._hold0[:] = p_a, hold0
+        self._iws_ip = w[N_W : N_W + N_IP]  # the integer parameters of the joint count in _iws_n
+        self._iws_n = -1
+        self._idx = w[N_W + N_IP :]
+        self._idx[:] = idx
+        self._absolute, self._has_last = self._bws[:a_dim], self._bws[a_dim:]
+        self._absolute[:] = absolute
 
     _warm: set = set()  # configurations whose kernels this process has already run
 
@@ -158,6 +184,9 @@ class Corrector:
             self(a, st)
             self(a[:, None], st)
             self.passthrough(a, "warm_up")
+            flat = st.pack()
+            for dtype in _STREAM_DTYPES:
+                self.correct_stream(a.astype(dtype), flat)
         self.passthrough_counts.clear()
         self.guard_counts.clear()
         self._warned.clear()
@@ -172,6 +201,7 @@ class Corrector:
         self._mem[sel] = 0.0
         self._lp_mem[sel] = 0.0
         self._has_last[sel] = False
+        self._ep_last[sel] = np.nan
 
     # ------------------------------------------------------------------ API boundary
     def _check(self, actions) -> np.ndarray:
@@ -198,14 +228,67 @@ class Corrector:
         t0 = time.perf_counter()
         return self._correct(self._check(actions), flat, t0)
 
+    def correct_stream(self, actions, flat, rows: tuple | None = None, k: int = -1) -> tuple[np.ndarray, int]:
+        """One step of a stream of control steps: as correct_packed for (B, A) actions, and an env
+        whose packed `episode_step` went back (a reset), or that has not been seen since the
+        corrector was built or reset, starts afresh first (`reset` of that env).
+
+        Where it can -- actions a C-contiguous float32 / float64 (B, A) numpy array, flat the
+        (B, L) float64 packed states of a width already seen, not profiling -- this is one
+        compiled call (tick.stream_tick) that also writes the step into row k of a recording:
+        rows = (the recording (cap, B, W), the env's extras (B, e) float64), columns as
+        tick.stream_tick writes them (k >= 0).
+        Elsewhere the same in steps (resets, then correct_packed) and no row is written.
+
+        Returns (out, written): out (B, A), in the actions' dtype from the one call, float64
+        otherwise; written -1 when no row was written, 0 when row k was, 1 when it was and every
+        env had just restarted together (the recording's earlier rows are a finished batch).
+        """
+        t0 = time.perf_counter()
+        if type(flat) is np.ndarray and flat.ndim == 2 and flat.shape[1] != self._flat_width:
+            self._set_width(flat.shape[1])
+        if (type(actions) is np.ndarray and actions.ndim == 2 and actions.dtype in _STREAM_DTYPES
+                and actions.flags.c_contiguous and type(flat) is np.ndarray and flat.ndim == 2
+                and flat.shape[1] == self._flat_width and flat.dtype == np.float64 and flat.flags.c_contiguous
+                and actions.shape[0] == self.batch_size == flat.shape[0] and actions.shape[1] == self.layout.dim
+                and not self.profile):
+            if rows is None:
+                rows, extra, k = *self._no_rows, -1
+            else:
+                rows, extra = rows
+            if self._iws_n != self._n:  # the integer parameters of this joint count into the arena
+                self._iws_ip[:] = self._int_params(self._n)
+                self._iws_n = self._n
+            out, events, restart = stream_tick(actions, flat, self._fws, self._iws, self._bws, rows, extra, k)
+            self.steps += self.batch_size
+            self._t_a = self._t_b = _NAN
+            self._diag, self._has_diag = None, True
+            if events:
+                self._count_events(True)
+            self._t_total = time.perf_counter() - t0
+            return out, (restart if k >= 0 else -1)
+        f = np.asarray(flat)
+        if f.ndim == 2 and f.shape[0] == self.batch_size and f.shape[1] > EPISODE_STEP:
+            step = f[:, EPISODE_STEP].astype(np.float64)
+            fresh = np.isnan(self._ep_last) | (step < self._ep_last)
+            if fresh.any():
+                self.reset(np.flatnonzero(fresh))
+            self._ep_last[:] = step
+        return self.correct_packed(actions, flat), -1
+
+    def _set_width(self, width: int) -> None:
+        """A new packed-state width: its joint count, checked once (ValueError for a width no arm
+        has, or an arm Branch B's layout does not fit)."""
+        n = n_joints_from_size(width)
+        if self.branch_b is not None:
+            self.branch_b.check_arm(n)
+        self._flat_width, self._n = width, n
+
     def _correct(self, a: np.ndarray, flat: np.ndarray, t0: float) -> np.ndarray:
         if flat.ndim != 2 or flat.shape[0] != self.batch_size:
             raise ValueError(f"physvla: packed state of shape {flat.shape}, corrector has {self.batch_size} envs")
-        if flat.shape[1] != self._flat_width:  # a new state width: its joint count, checked once
-            n = n_joints_from_size(flat.shape[1])
-            if self.branch_b is not None:
-                self.branch_b.check_arm(n)
-            self._flat_width, self._n = flat.shape[1], n
+        if flat.shape[1] != self._flat_width:
+            self._set_width(flat.shape[1])
         n = self._n
         if flat.dtype != np.float64 or not flat.flags.c_contiguous:
             flat = np.ascontiguousarray(flat, dtype=np.float64)
@@ -298,6 +381,7 @@ class Corrector:
         self._b_on = bool(on)
         for ip in self._params.values():
             ip[IP_BRANCH_B] = self._b_on
+        self._iws_n = -1  # the arena's copy is refreshed at the next streamed call
 
     def _guarded(self, out, a_raw, status, every: bool, commit: bool) -> None:
         lay = self.layout

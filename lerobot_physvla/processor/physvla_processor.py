@@ -27,9 +27,6 @@ from lerobot.utils.constants import OBS_PREFIX
 
 from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
-from lerobot_physvla.core.state import field_offsets
-
-_EPISODE_STEP = field_offsets(1)["episode_step"]  # the header fields come before the joint-sized ones
 
 STATE_KEY = "physvla_state"  # inside robot_state: the packed PhysState row (L,)
 EXTRA_KEY = "physvla_extra"  # inside robot_state: [task_id, is_success, last executed action (A)]
@@ -84,17 +81,12 @@ def _to_numpy(x) -> np.ndarray:
 
 
 def _like(out: np.ndarray, action: torch.Tensor) -> torch.Tensor:
-    """out (float64) as a new tensor of the action's dtype and device (numpy's cast costs less than torch's)."""
+    """out (float32 or float64) as a new tensor of the action's dtype and device (numpy's cast costs less than torch's)."""
     if action.dtype is torch.float32:
-        t = torch.from_numpy(out.astype(np.float32))
+        t = torch.from_numpy(out if out.dtype == np.float32 else out.astype(np.float32))
     else:
         t = torch.from_numpy(out).to(dtype=action.dtype)
     return t if action.is_cpu else t.to(action.device)
-
-
-def _episode_step(flat: np.ndarray) -> np.ndarray:
-    """(B,) episode_step column of (B, L) packed states (no unpacking)."""
-    return flat[:, _EPISODE_STEP].copy()
 
 
 def _safe_any_shape(a: np.ndarray, low: float, high: float) -> np.ndarray:
@@ -194,7 +186,6 @@ class PhysVLACorrectorStep(ProcessorStep):
     passthrough_counts: Counter = field(default_factory=Counter, init=False, repr=False)
     listeners: list = field(default_factory=list, init=False, repr=False)
     _corrector: Corrector | None = field(default=None, init=False, repr=False)
-    _last_step: np.ndarray | float | None = field(default=None, init=False, repr=False)  # (B,) or B = 1's float
     _bus: StateBus | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -221,7 +212,6 @@ class PhysVLACorrectorStep(ProcessorStep):
     def _ensure_corrector(self, b: int) -> Corrector:
         if self._corrector is None or self._corrector.batch_size != b:
             self._corrector = Corrector(self.cfg, b)
-            self._last_step = None
         return self._corrector
 
     def __call__(self, transition: EnvTransition) -> EnvTransition:
@@ -239,7 +229,8 @@ class PhysVLACorrectorStep(ProcessorStep):
         return new
 
     def _correct(self, action: torch.Tensor) -> np.ndarray:
-        """Corrected actions (numpy, float64); every path ends inside the action bounds, finite."""
+        """Corrected actions (numpy: float32 for a float32 action on the one-call path, else float64);
+        every path ends inside the action bounds, finite."""
         raw = _to_numpy(action)
         lay = self._layout
         if raw.ndim not in (2, 3) or raw.shape[-1] != lay.dim:
@@ -259,28 +250,24 @@ class PhysVLACorrectorStep(ProcessorStep):
         if flat.shape[0] != b:
             self._warn("state_batch_mismatch", f"state for {flat.shape[0]} envs, action for {b}")
             return corrector.passthrough(raw, "state_batch_mismatch")
-        # Episode boundaries: an env whose step counter went back (to 0 at reset) starts afresh.
-        last = self._last_step
-        if b == 1:  # a float compare instead of array work
-            step = float(flat[0, _EPISODE_STEP])
-            if last is None or np.ndim(last) != 0 or step < last:
-                corrector.reset()
-        else:
-            step = _episode_step(flat)
-            if last is None or np.ndim(last) == 0:
-                corrector.reset()
-            else:
-                new_ep = step < last
-                if new_ep.any():
-                    corrector.reset(np.flatnonzero(new_ep))
-        self._last_step = step
-
-        if not self.listeners:
-            return corrector.correct_packed(raw, flat)
+        # Episode boundaries (an env whose step counter went back starts afresh), the correction and,
+        # for a recorder that takes rows, the step's diagnostics row: one compiled call (Corrector.correct_stream)
+        listeners = self.listeners
+        if not listeners:
+            return corrector.correct_stream(raw, flat)[0]
         t0 = time.perf_counter()
-        out = corrector.correct_packed(raw, flat)
-        t_total = time.perf_counter() - t0
-        for listener in self.listeners:  # per-step recording only when someone listens
+        if len(listeners) == 1 and hasattr(listeners[0], "stream_rows"):
+            rec = listeners[0]
+            rows, k = rec.stream_rows(raw, flat, bus.extra, corrector)
+            out, written = corrector.correct_stream(raw, flat, rows, k)
+            t_total = time.perf_counter() - t0
+            if written >= 0:
+                rec.commit(k, written, t_total)
+                return out
+        else:
+            out = corrector.correct_stream(raw, flat)[0]
+            t_total = time.perf_counter() - t0
+        for listener in listeners:  # per-step recording only when someone listens
             listener(raw, out, flat, bus.extra, corrector, t_total)
         return out
 
@@ -291,7 +278,6 @@ class PhysVLACorrectorStep(ProcessorStep):
         """Forget all per-env memory (the next call starts every env's episode afresh)."""
         if self._corrector is not None:
             self._corrector.reset()
-        self._last_step = None
 
     def transform_features(
         self, features: dict[PipelineFeatureType, dict[str, PolicyFeature]]

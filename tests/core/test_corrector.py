@@ -241,3 +241,33 @@ def test_phase_ref_object_measures_the_place_distance_from_the_held_object():
     c_obj(RAW, st)
     assert c_eef.last.phase[0] == Phase.TRANSPORT and c_eef.last.d_tgt_xy[0] == pytest.approx(0.08)
     assert c_obj.last.phase[0] == Phase.PLACE and c_obj.last.d_tgt_xy[0] == pytest.approx(0.0)
+
+
+@pytest.mark.parametrize("mode", ["phys", "phys_el", "temporal"])
+def test_a_stream_in_one_call_equals_the_stream_in_steps(mode):
+    """correct_stream's compiled call (episode resets, the tick) against its step-by-step path
+    (reset where episode_step went back or on first sight, then correct_packed): the same actions
+    over episodes of different lengths per env, non-finite and out-of-bounds actions included."""
+    cfg = PhysVLAConfig(mode=mode, cap=1.0)
+    one, steps = Corrector(cfg, 3), Corrector(cfg, 3)
+    rng = np.random.default_rng(5)
+    counters = np.zeros(3)
+    for t in range(120):
+        for i, length in enumerate((25, 40, 61)):
+            if t and t % length == 0:
+                counters[i] = 0
+        st = make_state(batch_size=3, obj=(0.02 * (30 - t % 30), 0.0, 0.9), seed=t)
+        st.episode_step[:] = counters
+        flat = st.pack()
+        a = rng.uniform(-1.5, 1.5, (3, 7))
+        if t % 17 == 0:
+            a[1, 2] = np.nan
+        out1, w1 = one.correct_stream(a.astype(np.float32), flat)
+        a_f = np.asfortranarray(a.astype(np.float32)).astype(np.float64)  # not C-contiguous: in steps
+        assert not a_f.flags.c_contiguous
+        out2, w2 = steps.correct_stream(a_f, flat)
+        assert out1.dtype == np.float32 and out2.dtype == np.float64 and w1 == w2 == -1
+        np.testing.assert_array_equal(out1, out2.astype(np.float32))
+        assert np.isfinite(out1).all() and np.abs(out1).max() <= 1.0
+        counters += 1
+    assert one.guard_counts == steps.guard_counts and one.steps == steps.steps

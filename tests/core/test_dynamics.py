@@ -180,3 +180,36 @@ def test_compiled_live_read_equals_mj_fullM_on_a_branching_tree(joints):
     np.testing.assert_allclose(st.eef_pos[0], d.site_xpos[0], atol=1e-12)
     if "r1" in joints and "l2" in joints:
         assert st.M[0][joints.index("r1"), joints.index("l2")] == 0.0
+
+
+@pytest.mark.parametrize("eef, constraint, fingers", [("site", False, None), ("body", True, [0]), ("site", True, [1, 2])])
+def test_the_one_buffer_read_equals_the_field_by_field_read(eef, constraint, fingers):
+    """read_live_into reads every field through one view of the MjData buffer and computes the
+    Jacobian itself (pack_live_buf); the field-by-field read with MuJoCo's mj_jacSite /
+    mj_jacBody (pack_live_row) gives the same row, bit for bit."""
+    from lerobot_physvla.core.dynamics import MujocoDynamicsOracle
+    from lerobot_physvla.core.state import packed_size
+
+    m = mujoco.MjModel.from_xml_string(_TREE)
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(1)
+    d.qpos[:] = rng.normal(size=m.nq)
+    d.qpos[-4:] /= np.linalg.norm(d.qpos[-4:])
+    d.qvel[:] = rng.normal(size=m.nv)
+    mujoco.mj_step(m, d)  # derived quantities of the last forward pass, as a simulator leaves them
+    d.qfrc_applied[:] = rng.normal(size=m.nv)
+    joints = ["l2", "slide", "l1"]
+    kw = {"eef_site": "tip"} if eef == "site" else {"eef_body": "l2"}
+    oracle = MujocoDynamicsOracle(m, joints, include_constraint=constraint, **kw)
+    fingers = None if fingers is None else np.asarray(fingers, np.intp)
+    consts = np.array([[0.0, 1.0], [2.0, 0.05]])
+    rows = []
+    for one_buffer in (True, False):
+        if not one_buffer:
+            oracle._buffer_arena = lambda *a: None  # the fallback path
+        row = np.full(packed_size(len(joints)), np.nan)
+        oracle.read_live_into(d, row, None, consts, fingers)
+        rows.append(row)
+    assert oracle._arena[3] is not None  # the first read did take the one-buffer path
+    np.testing.assert_array_equal(rows[0], rows[1])
+    assert np.isfinite(rows[0][2:]).sum() > 3 * len(joints)  # J_pos and the rest were written
