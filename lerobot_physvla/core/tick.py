@@ -116,6 +116,15 @@ def _compile(key: int):
         g = guard(out, a_raw, status, baseline, absolute, hold0, fp[FP_LOW], fp[FP_HIGH], last, has_last, commit)
         return out, record_tick(diag, phase, status, g, geo, r, dev, w, commit)
 
+    return correct_tick
+
+
+correct_tick = _compile(TICK_SOURCE_KEY)
+
+
+def _compile_stream(key: int):
+    # correct_tick is read as a module global here (a closure over a dispatcher would make numba
+    # skip its cache and compile at every start); key keeps the cache keyed on every stage's source
     @njit(cache=True, error_model="numpy")
     def stream_tick(a_in, flat, fws, iws, bws, rows, extra, k):
         """One control step of a stream of (B, A) actions, everything a LeRobot step needs in one
@@ -192,7 +201,7 @@ def _compile(key: int):
                 restart = 1
         return res, events, restart
 
-    return correct_tick, stream_tick
+    return stream_tick
 
 
-correct_tick, stream_tick = _compile(TICK_SOURCE_KEY)
+stream_tick = _compile_stream(TICK_SOURCE_KEY)
