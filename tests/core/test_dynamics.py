@@ -157,16 +157,21 @@ _TREE = """
 """
 
 
+def _random_tree_data(m, seed: int):
+    """An MjData of the _TREE model at a random state (unit quaternion for the free body)."""
+    d = mujoco.MjData(m)
+    rng = np.random.default_rng(seed)
+    d.qpos[:] = rng.normal(size=m.nq)
+    d.qpos[-4:] /= np.linalg.norm(d.qpos[-4:])
+    d.qvel[:] = rng.normal(size=m.nv)
+    return d
+
+
 @pytest.mark.parametrize("joints", [["slide", "l1", "l2"], ["l2", "r1", "l1"], ["r1", "l2"]])
 def test_compiled_live_read_equals_mj_fullM_on_a_branching_tree(joints):
     """Arm dofs in any order, on separate branches (uncoupled, M = 0 there), after a free body."""
     m = mujoco.MjModel.from_xml_string(_TREE)
-    d = mujoco.MjData(m)
-    rng = np.random.default_rng(0)
-    d.qpos[:] = rng.normal(size=m.nq)
-    d.qpos[-4:] /= np.linalg.norm(d.qpos[-4:])
-    d.qvel[:] = rng.normal(size=m.nv)
-    d.ctrl[:] = 0
+    d = _random_tree_data(m, 0)
     mujoco.mj_forward(m, d)
     from lerobot_physvla.core.dynamics import MujocoDynamicsOracle
     from lerobot_physvla.core.state import PhysState, packed_size
@@ -191,25 +196,21 @@ def test_the_one_buffer_read_equals_the_field_by_field_read(eef, constraint, fin
     from lerobot_physvla.core.state import packed_size
 
     m = mujoco.MjModel.from_xml_string(_TREE)
-    d = mujoco.MjData(m)
-    rng = np.random.default_rng(1)
-    d.qpos[:] = rng.normal(size=m.nq)
-    d.qpos[-4:] /= np.linalg.norm(d.qpos[-4:])
-    d.qvel[:] = rng.normal(size=m.nv)
-    mujoco.mj_step(m, d)  # derived quantities of the last forward pass, as a simulator leaves them
-    d.qfrc_applied[:] = rng.normal(size=m.nv)
     joints = ["l2", "slide", "l1"]
     kw = {"eef_site": "tip"} if eef == "site" else {"eef_body": "l2"}
     oracle = MujocoDynamicsOracle(m, joints, include_constraint=constraint, **kw)
     fingers = None if fingers is None else np.asarray(fingers, np.intp)
     consts = np.array([[0.0, 1.0], [2.0, 0.05]])
-    rows = []
-    for one_buffer in (True, False):
-        if not one_buffer:
-            oracle._buffer_arena = lambda *a: None  # the fallback path
-        row = np.full(packed_size(len(joints)), np.nan)
-        oracle.read_live_into(d, row, None, consts, fingers)
-        rows.append(row)
-    assert oracle._arena[3] is not None  # the first read did take the one-buffer path
-    np.testing.assert_array_equal(rows[0], rows[1])
-    assert np.isfinite(rows[0][2:]).sum() > 3 * len(joints)  # J_pos and the rest were written
+    for seed in (1, 2):  # a second MjData of the same model (robosuite builds one at every reset)
+        d = _random_tree_data(m, seed)
+        mujoco.mj_step(m, d)  # derived quantities of the last forward pass, as a simulator leaves them
+        d.qfrc_applied[:] = np.random.default_rng(seed).normal(size=m.nv)
+        one = np.full(packed_size(len(joints)), np.nan)
+        oracle.read_live_into(d, one, None, consts, fingers)
+        assert oracle._arena[0] is d and oracle._arena[3] is not None  # the one-buffer path, this data
+        by_field = np.full_like(one, np.nan)
+        oracle._buffer_arena = lambda *a: None  # the fallback path
+        oracle.read_live_into(d, by_field, None, consts, fingers)
+        del oracle._buffer_arena
+        np.testing.assert_array_equal(one, by_field)
+        assert np.isfinite(one[2:]).sum() > 3 * len(joints)  # J_pos and the rest were written
