@@ -543,7 +543,7 @@ def main() -> None:
               "finds them after the physics step and the policy's forward pass). A cold compiled call costs more the "
               "more array arguments it unboxes, so the state read (`pack_live_buf`: the row, one view of the MjData "
               "buffer, an int arena, the header constants) and the LeRobot step's tick (`correct_stream`: the action, "
-              "the state, three arenas, the recorder's rows, the extras, the row index) each take all they need in "
+              "the state, three arenas) each take all they need in "
               "one call with few arguments; what remains is the tensor conversions at the step's two ends and "
               "lerobot's own Python around them (docs/method.md \"Speed\").\n",
               "| piece | warm p50 (us) | cold p50 (us) | cold / warm |", "|---|---|---|---|"]

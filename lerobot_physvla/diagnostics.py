@@ -29,7 +29,7 @@ from lerobot_physvla import metrics
 from lerobot_physvla.report import corrections_by_phase, phase_timeline
 from lerobot_physvla.core.phase import PHASE_NAMES
 from lerobot_physvla.core.state import REASONS
-from lerobot_physvla.core.tick import D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, D_W_SUM, ROW_HEADER
+from lerobot_physvla.core.tick import D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, D_W_SUM
 
 
 class _Episode:
@@ -178,30 +178,20 @@ def _nanpct(x, q) -> float | None:
 
 
 class _Segment:
-    """Per-call rows of one batch size, in one growable array (capacity doubles when full):
-    `rows` (cap, B, W) with the columns Corrector.correct_stream writes in its compiled call
-    (tick.stream_tick), seen through the views raw, out (B, A each), header (ROW_HEADER
-    packed-state fields), diag (the corrector's diagnostics), extra (the env's extras)."""
+    """Per-call rows of one batch size, in growable arrays (capacity doubles when full)."""
 
-    HEADER = ROW_HEADER  # packed-state prefix kept per env: valid, episode_step, dt, eef_pos (state.py order)
+    HEADER = 6  # packed-state prefix kept per env: valid, episode_step, dt, eef_pos (state.py order)
 
     def __init__(self, b: int, a_dim: int, n_diag: int, n_extra: int, n_state: int | None):
         self.b, self.a_dim, self.n_diag, self.n_extra, self.n_state = b, a_dim, n_diag, n_extra, n_state
         self.n = 0
         cap = 64
-        self._views(np.zeros((cap, b, 2 * a_dim + self.HEADER + n_diag + n_extra)))
-        self.extra[:] = np.nan
+        self.raw, self.out = np.zeros((cap, b, a_dim)), np.zeros((cap, b, a_dim))
+        self.header = np.zeros((cap, b, self.HEADER))
+        self.diag = np.zeros((cap, b, n_diag))
+        self.extra = np.full((cap, b, n_extra), np.nan)
         self.t_us = np.zeros(cap)
         self.states = np.zeros((cap, b, n_state)) if n_state else None
-        self.no_extra = np.zeros((b, 0))  # the extras of a call that has none
-
-    def _views(self, rows: np.ndarray) -> None:
-        a, h, d = self.a_dim, self.HEADER, self.n_diag
-        self.rows = rows
-        self.raw, self.out = rows[:, :, :a], rows[:, :, a : 2 * a]
-        self.header = rows[:, :, 2 * a : 2 * a + h]
-        self.diag = rows[:, :, 2 * a + h : 2 * a + h + d]
-        self.extra = rows[:, :, 2 * a + h + d :]
 
     def clear(self) -> None:
         """Forget the rows (the arrays are kept and reused)."""
@@ -211,27 +201,18 @@ class _Segment:
     def fits(self, b, a_dim, n_diag, n_extra, n_state) -> bool:
         return (b, a_dim, n_diag, n_extra, n_state) == (self.b, self.a_dim, self.n_diag, self.n_extra, self.n_state)
 
-    def reserve(self) -> int:
-        """The index of the next row, the arrays grown first when they are full."""
-        k = self.n
-        cap = len(self.t_us)
-        if k == cap:
-            rows = np.zeros((2 * cap, *self.rows.shape[1:]))
-            rows[:k] = self.rows[:k]
-            self._views(rows)
-            self.extra[k:] = np.nan
-            for name in ("t_us", "states"):
-                arr = getattr(self, name)
-                if arr is not None:
-                    grown = np.zeros((2 * cap, *arr.shape[1:]))
-                    grown[:k] = arr[:k]
-                    setattr(self, name, grown)
-        return k
-
     def append(self, raw, out, flat, diag, extra, t_us: float) -> None:
         """One call: raw and corrected actions (B, A) or (B, T, A) (step 0 is kept), packed states
         (B, L), diagnostics (B, D), extras (B, E) or None, the time per env-step (us)."""
-        k = self.reserve()
+        k = self.n
+        if k == len(self.t_us):
+            for name in ("raw", "out", "header", "diag", "extra", "t_us", "states"):
+                arr = getattr(self, name)
+                if arr is not None:
+                    grown = np.full((2 * len(arr), *arr.shape[1:]), np.nan) if name == "extra" else np.zeros(
+                        (2 * len(arr), *arr.shape[1:]))
+                    grown[:k] = arr[:k]
+                    setattr(self, name, grown)
         self.raw[k] = raw[:, 0] if raw.ndim == 3 else raw
         self.out[k] = out[:, 0] if out.ndim == 3 else out
         self.header[k] = flat[:, : self.HEADER]
@@ -297,45 +278,6 @@ class EpisodeRecorder:
             seg.clear()
             self._segments.append(seg)
         seg.append(raw, out, flat, diag, extra, t_total_s * 1e6 / b)
-        self._episodes = None
-
-    def stream_rows(self, raw, flat, extra, corrector) -> tuple[tuple | None, int]:
-        """The rows Corrector.correct_stream writes this call into, in its one compiled call:
-        (the recording (cap, B, W), the env's extras (B, e) float64) and the row index, or (None, -1) where
-        this recorder records by its own call instead (states saved, a chunk, a new batch size
-        or width: `__call__`). After the call: `commit`."""
-        if self.save_states or raw.ndim != 2:
-            return None, -1
-        b, a_dim = raw.shape
-        n_diag = corrector.diag_buffer.shape[1]
-        n_extra = 0 if extra is None else extra.shape[1]
-        seg = self._seg
-        if seg is None or not seg.fits(b, a_dim, n_diag, max(n_extra, seg.n_extra), None):
-            return None, -1
-        if extra is None:
-            extra = seg.no_extra
-        elif extra.dtype != np.float64 or not extra.flags.c_contiguous:
-            extra = np.ascontiguousarray(extra, dtype=np.float64)
-        if extra.shape[0] != b:
-            return None, -1
-        k = seg.reserve()  # first: growing replaces the array
-        return (seg.rows, extra), k
-
-    def commit(self, k: int, written: int, t_total_s: float) -> None:
-        """Row k was written by the corrector's call (written 1: every env had just restarted, so
-        the rows before it are a finished rollout batch); t_total_s: the call's time."""
-        seg = self._seg
-        seg.t_us[k] = t_total_s * 1e6 / seg.b
-        if written == 1 and k > 0:  # the last rollout batch is over: reduce it, row k becomes row 0
-            row, t_us = seg.rows[k].copy(), seg.t_us[k]
-            seg.n = k
-            self._finish()
-            seg.clear()
-            self._segments.append(seg)
-            seg.rows[0], seg.t_us[0] = row, t_us
-            seg.n = 1
-        else:
-            seg.n = k + 1
         self._episodes = None
 
     def _finish(self) -> None:

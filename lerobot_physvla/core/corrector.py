@@ -125,8 +125,6 @@ class Corrector:
         self.diag_buffer[:, D_PHASE] = -1
         self.diag_buffer[:, D_R_EL : D_R_ENERGY + 1] = np.nan
         self._ep_last[:] = np.nan  # each env's episode_step at its last streamed call (NaN: none yet)
-        # correct_stream with no recording: a row array that is never written, no extras
-        self._no_rows = (np.zeros((1, 1, 1)), np.zeros((b, 0)))
         self._warned: set[str] = set()
         self._diag: StepDiagnostics | None = None  # built from the buffers when `last` is read
         self._has_diag = False
@@ -228,21 +226,15 @@ class Corrector:
         t0 = time.perf_counter()
         return self._correct(self._check(actions), flat, t0)
 
-    def correct_stream(self, actions, flat, rows: tuple | None = None, k: int = -1) -> tuple[np.ndarray, int]:
+    def correct_stream(self, actions, flat) -> np.ndarray:
         """One step of a stream of control steps: as correct_packed for (B, A) actions, and an env
         whose packed `episode_step` went back (a reset), or that has not been seen since the
         corrector was built or reset, starts afresh first (`reset` of that env).
 
         Where it can -- actions a C-contiguous float32 / float64 (B, A) numpy array, flat the
-        (B, L) float64 packed states of a width already seen, not profiling -- this is one
-        compiled call (tick.stream_tick) that also writes the step into row k of a recording:
-        rows = (the recording (cap, B, W), the env's extras (B, e) float64), columns as
-        tick.stream_tick writes them (k >= 0).
-        Elsewhere the same in steps (resets, then correct_packed) and no row is written.
-
-        Returns (out, written): out (B, A), in the actions' dtype from the one call, float64
-        otherwise; written -1 when no row was written, 0 when row k was, 1 when it was and every
-        env had just restarted together (the recording's earlier rows are a finished batch).
+        (B, L) float64 packed states, not profiling -- this is one compiled call
+        (tick.stream_tick) and the output comes back in the actions' dtype; elsewhere the same in
+        steps (resets, then correct_packed), float64.
         """
         t0 = time.perf_counter()
         if type(flat) is np.ndarray and flat.ndim == 2 and flat.shape[1] != self._flat_width:
@@ -252,21 +244,17 @@ class Corrector:
                 and flat.shape[1] == self._flat_width and flat.dtype == np.float64 and flat.flags.c_contiguous
                 and actions.shape[0] == self.batch_size == flat.shape[0] and actions.shape[1] == self.layout.dim
                 and not self.profile):
-            if rows is None:
-                rows, extra, k = *self._no_rows, -1
-            else:
-                rows, extra = rows
             if self._iws_n != self._n:  # the integer parameters of this joint count into the arena
                 self._iws_ip[:] = self._int_params(self._n)
                 self._iws_n = self._n
-            out, events, restart = stream_tick(actions, flat, self._fws, self._iws, self._bws, rows, extra, k)
+            out, events = stream_tick(actions, flat, self._fws, self._iws, self._bws)
             self.steps += self.batch_size
             self._t_a = self._t_b = _NAN
             self._diag, self._has_diag = None, True
             if events:
                 self._count_events(True)
             self._t_total = time.perf_counter() - t0
-            return out, (restart if k >= 0 else -1)
+            return out
         f = np.asarray(flat)
         if f.ndim == 2 and f.shape[0] == self.batch_size and f.shape[1] > EPISODE_STEP:
             step = f[:, EPISODE_STEP].astype(np.float64)
@@ -274,7 +262,7 @@ class Corrector:
             if fresh.any():
                 self.reset(np.flatnonzero(fresh))
             self._ep_last[:] = step
-        return self.correct_packed(actions, flat), -1
+        return self.correct_packed(actions, flat)
 
     def _set_width(self, width: int) -> None:
         """A new packed-state width: its joint count, checked once (ValueError for a width no arm

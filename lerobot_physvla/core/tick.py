@@ -51,7 +51,6 @@ TICK_SOURCE_KEY = source_key(TICK_SOURCE_FILES)
 # deviation max|a - a_raw| (action units), sum of Branch B weights, then the A weights
 D_PHASE, D_STATUS, D_GUARD, D_OBJ, D_TGT, D_LIFT, D_R_EL, D_R_ENERGY, D_DEV, D_W_SUM, N_DIAG = range(11)
 EPISODE_STEP = field_offsets(1)["episode_step"]  # a header field: the same offset for every joint count
-ROW_HEADER = 6  # packed-state fields a recording row keeps per env: valid, episode_step, dt, eef_pos (state.py)
 # stream_tick's int64 arena iws: offsets into the float64 arena fws (fp, p_a, hold0, mem, lp_mem, last
 # action, diag, ep_last), p_a's length, mem's and lp_mem's widths, offsets into the bool arena bws
 # (absolute, has_last); then the tick's integer parameters ip (N_IP) and the channel index
@@ -126,25 +125,20 @@ def _compile_stream(key: int):
     # correct_tick is read as a module global here (a closure over a dispatcher would make numba
     # skip its cache and compile at every start); key keeps the cache keyed on every stage's source
     @njit(cache=True, error_model="numpy")
-    def stream_tick(a_in, flat, fws, iws, bws, rows, extra, k):
-        """One control step of a stream of (B, A) actions, everything a LeRobot step needs in one
+    def stream_tick(a_in, flat, fws, iws, bws):
+        """One control step of a stream of (B, A) actions, what a LeRobot step needs in one
         compiled call with few arguments (a call from Python costs ~8 us plus ~0.7 us per array
         argument when the caches are cold, as they are between physics steps):
 
         1. episode boundaries: an env whose packed `episode_step` went back, or that has none
            yet (NaN in ep_last), starts afresh (its Branch A and low-pass memory and last action
            forgotten, as Corrector.reset); ep_last keeps each env's counter;
-        2. the tick (correct_tick, committed) on a_in cast to float64;
-        3. when k >= 0, the step's row k of a recording `rows` (cap, B, W), columns: the raw and
-           the corrected action as emitted (A each), the first ROW_HEADER packed-state fields, the
-           diagnostics (N_DIAG + A), the env's extras (the rest; extra (B, e) fills the first e).
+        2. the tick (correct_tick, committed) on a_in cast to float64, its output in a_in's dtype.
 
         The corrector's arrays live in three arenas (Corrector.__init__), at offsets iws[W_*]:
         fws float64 (fp, p_a, hold0, mem, lp_mem, last, diag, ep_last), iws int64 (the offsets,
         the tick's integer parameters ip, the channel index), bws bool (absolute, has_last).
-        Returns (out (B, A) in a_in's dtype, events as correct_tick, restart): restart = 1 when
-        row k was written, every env's counter is 0 and row k - 1 had one that was not (all
-        envs restarted together: lerobot-eval's next rollout batch).
+        Returns (out (B, A) in a_in's dtype, events as correct_tick).
         """
         key  # noqa: B018 - in the cache key, as above
         b, a_dim = a_in.shape
@@ -178,28 +172,7 @@ def _compile_stream(key: int):
         for i in range(b):
             for j in range(a_dim):
                 res[i, j] = out[i, j]
-        restart = 0
-        if k >= 0:
-            o_h, o_d, o_e = 2 * a_dim, 2 * a_dim + ROW_HEADER, 2 * a_dim + ROW_HEADER + n_d
-            e = min(extra.shape[1], rows.shape[2] - o_e)
-            all_zero, before = True, False
-            for i in range(b):
-                for j in range(a_dim):
-                    rows[k, i, j] = a[i, j]
-                    rows[k, i, a_dim + j] = res[i, j]  # as emitted (in a_in's dtype)
-                for j in range(ROW_HEADER):
-                    rows[k, i, o_h + j] = flat[i, j]
-                for j in range(n_d):
-                    rows[k, i, o_d + j] = diag[i, j]
-                for j in range(e):
-                    rows[k, i, o_e + j] = extra[i, j]
-                if flat[i, EPISODE_STEP] != 0.0:
-                    all_zero = False
-                if k > 0 and rows[k - 1, i, o_h + EPISODE_STEP] != 0.0:
-                    before = True
-            if all_zero and before:
-                restart = 1
-        return res, events, restart
+        return res, events
 
     return stream_tick
 

@@ -250,24 +250,14 @@ class PhysVLACorrectorStep(ProcessorStep):
         if flat.shape[0] != b:
             self._warn("state_batch_mismatch", f"state for {flat.shape[0]} envs, action for {b}")
             return corrector.passthrough(raw, "state_batch_mismatch")
-        # Episode boundaries (an env whose step counter went back starts afresh), the correction and,
-        # for a recorder that takes rows, the step's diagnostics row: one compiled call (Corrector.correct_stream)
-        listeners = self.listeners
-        if not listeners:
-            return corrector.correct_stream(raw, flat)[0]
+        # Episode boundaries (an env whose step counter went back starts afresh) and the correction:
+        # one compiled call (Corrector.correct_stream)
+        if not self.listeners:
+            return corrector.correct_stream(raw, flat)
         t0 = time.perf_counter()
-        if len(listeners) == 1 and hasattr(listeners[0], "stream_rows"):
-            rec = listeners[0]
-            rows, k = rec.stream_rows(raw, flat, bus.extra, corrector)
-            out, written = corrector.correct_stream(raw, flat, rows, k)
-            t_total = time.perf_counter() - t0
-            if written >= 0:
-                rec.commit(k, written, t_total)
-                return out
-        else:
-            out = corrector.correct_stream(raw, flat)[0]
-            t_total = time.perf_counter() - t0
-        for listener in listeners:  # per-step recording only when someone listens
+        out = corrector.correct_stream(raw, flat)
+        t_total = time.perf_counter() - t0
+        for listener in self.listeners:  # per-step recording only when someone listens
             listener(raw, out, flat, bus.extra, corrector, t_total)
         return out
 
