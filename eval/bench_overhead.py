@@ -334,7 +334,7 @@ def _trivial(a):  # the least a compiled call can do: read one float of one arra
 
 
 @njit(cache=False)
-def _trivial8(a0, a1, a2, a3, a4, a5, a6, a7):  # the same with 8 array arguments (stream_tick has 8)
+def _trivial8(a0, a1, a2, a3, a4, a5, a6, a7):  # the same with 8 array arguments
     return a0[0]
 
 
