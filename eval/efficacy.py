@@ -126,9 +126,9 @@ LEARNED_ALONE = ("full veto + height + reach", "place redirect")
 LEARNED_SCREENED = ("act_single",)  # the backbone the default cost most: its rules one by one
 LEARNED_CANDIDATES = (CANDIDATE_3, CANDIDATE_4)
 # on the learned confirmation block 5-9 (config -> backbones it ran on): candidate 3 on act_single
-# only (its design-block cost on the weak siblings had already ruled it out). Candidate 4 (the
-# shipped default) is not confirmed there yet: add it as CANDIDATE_4: None (every backbone)
-LEARNED_CONFIRM = {"baseline": ("act_single",), CANDIDATE_3: ("act_single",)}
+# only (its design-block cost on the weak siblings had already ruled it out); candidate 4 (the
+# shipped default) and baseline on every learned backbone (None)
+LEARNED_CONFIRM = {"baseline": None, CANDIDATE_3: ("act_single",), CANDIDATE_4: None}
 # candidate 3 on the design block (its baselines are the design stage's) and on a fifth block no
 # decision looked at: init states 20-24 for the experts, 5-9 for the learned backbones (their
 # demonstrations came from 10-39)

@@ -399,7 +399,7 @@ def _records_on_disk(units: list, out: Path) -> list[dict]:
 
 def _checkpoints(names: list[str], root: str, fix: str) -> dict[str, Path]:
     """Each learned backbone's checkpoint directory; one clear error naming the missing ones."""
-    ckpts = {n: _train_backbones().checkpoint(n, root) for n in names}
+    ckpts = {n: _train_backbones().trained_or_committed(n, root) for n in names}
     missing = [n for n, c in ckpts.items() if not (c / "model.safetensors").exists()]
     if missing:
         raise SystemExit(f"experiments: no checkpoint for {missing} under {root}; {fix}")

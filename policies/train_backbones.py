@@ -115,6 +115,21 @@ def checkpoint(name: str, out_root: str = "outputs/train") -> Path:
     return Path(out_root) / name / "checkpoints" / "last" / "pretrained_model"
 
 
+# The GPU-trained ACT checkpoints the published tables ran (eval/results/learned), committed because
+# they are small (2.6-5.7 MB) and a CPU run of the same recipe is another policy. The H100 re-runs
+# them bit for bit: the same recipe, data and seed gave the same model.safetensors in two sessions.
+# Diffusion's checkpoint (17 MB) is not committed and did not re-run bit for bit on the H100.
+COMMITTED = Path(__file__).resolve().parent / "checkpoints"
+
+
+def trained_or_committed(name: str, out_root: str = "outputs/train") -> Path:
+    """The checkpoint train_backbones.py wrote under out_root, else the committed copy of it."""
+    trained, committed = checkpoint(name, out_root), COMMITTED / name
+    if not (trained / "model.safetensors").exists() and (committed / "model.safetensors").exists():
+        return committed
+    return trained
+
+
 def _device_name(device: str) -> str:
     if device.startswith("cuda"):
         import torch

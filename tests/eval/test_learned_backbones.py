@@ -144,3 +144,32 @@ def test_recorded_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
         assert success  # the replayed episode ends where the recorded one did: in success
     finally:
         vec.close()
+
+
+def test_the_committed_checkpoints_are_the_weights_the_published_table_ran():
+    """policies/checkpoints holds the GPU-trained ACT backbones: each one's weights are the ones every
+    unit of eval/results/learned recorded for it, and the harness runs it (on the CPU) with no
+    training here. A retrained or replaced file would fail the first assertion."""
+    import hashlib
+
+    from backbones import LeRobotBackbone
+
+    from lerobot_physvla.sim.scenes import LiberoScene
+
+    units = ROOT / "eval/results/learned/units"
+    names = sorted(p.name for p in train_backbones.COMMITTED.iterdir() if (p / "model.safetensors").exists())
+    assert {"act_single", "act_single_weak", "act_chunk", "act_chunk_weak"} <= set(names)
+    for name in names:
+        ckpt = train_backbones.trained_or_committed(name, "/nonexistent")
+        assert ckpt == train_backbones.COMMITTED / name
+        sha = hashlib.sha256((ckpt / "model.safetensors").read_bytes()).hexdigest()
+        ran = {json.loads(u.read_text())["policy_sha256"] for u in units.glob(f"{name}__*.json")}
+        assert ran == {sha}, name
+        recipe = json.loads((ckpt / "recipe.json").read_text())
+        assert recipe["recipe"] == train_backbones.SIBLINGS.get(name, (name,))[0] and "cuda" in recipe["device"]
+    scene = LiberoScene("libero_spatial", 0)
+    policy = LeRobotBackbone(str(train_backbones.COMMITTED / "act_single"))
+    scene.reset(0)
+    policy.reset(0)
+    a = policy.act(scene, scene.read())
+    assert a.shape == (7,) and np.isfinite(a).all() and np.abs(a).max() <= 1.5
