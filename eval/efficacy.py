@@ -232,6 +232,47 @@ def _plot(records, path) -> None:
     plt.close(fig)
 
 
+TAUGHT = 0.2  # a task the teacher (the clean expert, uncorrected) solves at least this often was demonstrated
+
+
+def _headroom_lines(records, learned) -> list[str]:
+    """Where the learned backbones' uncorrected failures lie: on tasks their teacher (the clean scripted
+    expert that recorded their demonstrations) solves, or on tasks it fails and so never demonstrated.
+    A corrector acts on a policy's actions; it cannot teach a task, so the failures on the teacher's
+    failed tasks bound what it can add: at most the failures on solved tasks, as pp of all pairs."""
+    teacher = defaultdict(list)
+    for r in records:
+        if r["backbone"] == "expert_clean" and r["config"] == "baseline" and r["scene"] == "libero_spatial":
+            teacher[r["task_id"]].append(r["success"])
+    base = [r for r in learned if r["config"] == "baseline" and r["seed"] in range(DESIGN_SEEDS.start, CONFIRM_SEEDS.stop)]
+    if not teacher or not base:
+        return []
+    solved = {t for t, v in teacher.items() if np.mean(v) >= TAUGHT}
+    rate = ", ".join(f"T{t} {sum(v)}/{len(v)}" for t, v in sorted(teacher.items()))
+    untaught = [r for r in learned if r["task_id"] not in solved and r["config"] != "baseline"]
+    lines = ["", f"## 8. Headroom on the learned backbones: where their uncorrected failures lie (init states "
+                 f"{DESIGN_SEEDS.start}-{CONFIRM_SEEDS.stop - 1})\n",
+             f"Their teacher, the clean scripted expert (uncorrected, init states 0-24): {rate}. Tasks it solves at "
+             f"least {TAUGHT:.0%} of the time: {', '.join(f'T{t}' for t in sorted(solved))}; on the others it "
+             "recorded almost no demonstrations (policies/record_dataset.py keeps successful episodes only). A "
+             "corrector changes a policy's actions, it does not teach a task: the failures on the expert's failed "
+             f"tasks are out of its reach (of the {len(untaught)} corrected learned episodes on them in sections 7 "
+             f"and 7b, {sum(r['success'] for r in untaught)} succeeded), and the failures on solved tasks bound the "
+             "most it can add.\n",
+             "| backbone | pairs | baseline | failures | on tasks the expert solves | on tasks it fails | "
+             "most a corrector can add | +10 pp needs, of the reachable failures |",
+             "|---|---|---|---|---|---|---|---|"]
+    for b in dict.fromkeys(r["backbone"] for r in base):
+        sel = [r for r in base if r["backbone"] == b]
+        fail = [r for r in sel if not r["success"]]
+        reach = sum(r["task_id"] in solved for r in fail)
+        need = int(np.ceil(0.10 * len(sel)))
+        lines.append(f"| {b} | {len(sel)} | {np.mean([r['success'] for r in sel]):.0%} | {len(fail)} | {reach} | "
+                     f"{len(fail) - reach} | +{100 * reach / len(sel):.0f} pp | "
+                     f"{need} of {reach} ({need / reach if reach else float('inf'):.0%}) |")
+    return lines
+
+
 def report(out, records, secs, n_units, header, write, learned=()) -> None:
     """eval/results/efficacy/README.md: the screen, both blocks paired against baseline, Lift/Fetch."""
     lines = header("Efficacy: per-correction ablation, the shipped default vs baseline, temporal and the paper's "
@@ -339,6 +380,7 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                 p = paired(recs, c, b) if c != "baseline" else None
                 if p and p["n"]:
                     lines.append(paired_row(f"{b} / {c}", p))
+    lines += _headroom_lines(records, learned)
     _plot(records, out / "success_jerk.png")
     lines += ["", "![success vs jerk per backbone](success_jerk.png)"]
     write(out, lines, records)
