@@ -143,6 +143,11 @@ class PhysVLAConfig:
             at least this far from the object's origin horizontally, or above veto_height_m: nearer
             and lower, open fingers can still straddle a rim or a handle (LIBERO bowls: radius
             ~0.06 m + half the Panda's 0.08 m opening = 0.10 m), metres; 0 = everywhere in approach.
+        veto_reopen: with gripper_rule=veto, the veto may also open a gripper whose last executed
+            command was closed (True, as the veto was first built) or only keeps an open gripper
+            open (False): a closed gripper may hold the object, and opening it drops it (measured:
+            a LIBERO bowl held by its rim hangs 0.060 m below the hand, at veto_height_m, while the
+            phase is still grasp; eval/results/efficacy section 7b).
         place_rule: decelerate (eq. 5) | redirect (place: the horizontal channels steer the held
             object's centre over the target's, redirect_gain (p_tgt - p_obj) / scale) |
             release_veto (place: only while the policy opens the gripper with the object off the
@@ -187,6 +192,7 @@ class PhysVLAConfig:
     phase_caps: tuple[float, ...] = ()
     veto_height_m: float = 0.0
     veto_reach_m: float = 0.0
+    veto_reopen: bool = True
     place_rule: str = "decelerate"
     redirect_gain: float = 0.5
     redirect_tol_m: float = 0.0

@@ -354,7 +354,7 @@ class Corrector:
             temporal = cfg.mode == "temporal"
             ip[IP_GRIP], ip[IP_TEMPORAL], ip[IP_BASELINE] = self._grip, temporal, cfg.mode == "baseline"
             ip[IP_BRANCH_B] = self.branch_b is not None and self._b_on
-            ip[IP_VETO] = cfg.gripper_rule == "veto" and not temporal
+            ip[IP_VETO] = 0 if cfg.gripper_rule != "veto" or temporal else 1 if cfg.veto_reopen else 2
             ip[IP_LOWPASS] = cfg.lowpass == "adaptive" and cfg.mode in ("phys", "phys_el")
             ip[IP_LP_MASK:N_IP] = cfg.lowpass_mask
             self._params[n] = ip
@@ -432,8 +432,8 @@ class Corrector:
                 a_phys, w, r = el_gate(a_raw, a_phys, flat, ip[IP_B:IP_N], ip[IP_N], ip[IP_POS:IP_FLAGS],
                                        fp[FP_B:FP_CAPS], ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
             caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO]
-            out, dev = blend(a_raw, a_phys, phase, status, caps, self._grip, fp[FP_GRIP_OPEN], bool(ip[IP_VETO]),
-                             fp[FP_VETO:FP_LP], geo, fp[FP_LOW], fp[FP_HIGH])
+            out, dev = blend(a_raw, a_phys, phase, status, caps, self._grip, fp[FP_GRIP_OPEN], int(ip[IP_VETO]),
+                             fp[FP_VETO:FP_LP], geo, fp[FP_LOW], fp[FP_HIGH], self._last_out, self._has_last)
             if ip[IP_LOWPASS]:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
                                  fp[FP_LP + 1], fp[FP_LP + 2], self._lp_mem, commit, dev)

@@ -107,8 +107,8 @@ def _compile(key: int):
                 a_phys, w, r = el_gate(a_raw, a_phys, flat, ip[IP_B:IP_N], ip[IP_N], ip[IP_POS:IP_FLAGS], fp[FP_B:N_FP],
                                        ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
             caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO]  # the temporal baseline is applied in full
-            out, dev = blend(a_raw, a_phys, phase, status, caps, ip[IP_GRIP], fp[FP_GRIP_OPEN], ip[IP_VETO] != 0,
-                             fp[FP_VETO:FP_LP], geo, fp[FP_LOW], fp[FP_HIGH])
+            out, dev = blend(a_raw, a_phys, phase, status, caps, ip[IP_GRIP], fp[FP_GRIP_OPEN], ip[IP_VETO],
+                             fp[FP_VETO:FP_LP], geo, fp[FP_LOW], fp[FP_HIGH], last, has_last)
             if ip[IP_LOWPASS] != 0:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
                                  fp[FP_LP + 1], fp[FP_LP + 2], lp_mem, commit, dev)

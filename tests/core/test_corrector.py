@@ -217,6 +217,27 @@ def test_full_veto_with_height_vetoes_a_close_above_the_object_in_grasp():
     assert Corrector(cfg.replace(veto_height_m=0.0))(close, high)[0, 6] == 1.0  # 0: approach only
 
 
+def test_the_veto_never_opens_a_gripper_that_holds_when_told_so():
+    """veto_reopen=False: the veto keeps an open gripper open but never opens a closed one (it may
+    hold the object). The failure it fixes: a LIBERO bowl held by its rim hangs 0.060 m below the
+    hand while the phase is still grasp; at the height veto's 0.06 m the veto opened the gripper."""
+    close = RAW.copy()
+    close[0, 6] = 1.0  # robosuite: +1 closes
+    cfg = PhysVLAConfig(mode="phys", phase_caps=(0.0,) * 4, gripper_rule="veto", veto_height_m=0.06)
+    low = make_state(eef=(0.01, 0, 0.94), obj=(0.0, 0.0, 0.9))  # grasp phase, 4 cm above: it closes
+    lifting = make_state(eef=(0.01, 0, 0.9605), obj=(0.0, 0.0, 0.9))  # still grasp, 6.05 cm above
+    for reopen, last_grip in ((True, -1.0), (False, 1.0)):
+        for profile in (False, True):  # the one-call tick and the staged twin
+            c = Corrector(cfg.replace(veto_reopen=reopen), profile=profile)
+            assert c(close, low)[0, 6] == 1.0  # closed on the object
+            assert c(close, lifting)[0, 6] == last_grip  # reopen: dropped; holds: kept closed
+    held = Corrector(cfg.replace(veto_reopen=False))
+    assert held(close, lifting)[0, 6] == -1.0  # never closed here: a close above the object is vetoed
+    assert held(close, lifting)[0, 6] == -1.0  # and stays vetoed (the gripper was held open)
+    far = make_state(eef=(0.3, 0, 0.94), obj=(0.0, 0.0, 0.9))  # approach, out of reach
+    assert held(close, far)[0, 6] == -1.0
+
+
 def test_veto_reach_spares_a_low_close_within_reach_of_a_rim():
     close = RAW.copy()
     close[0, 6] = 1.0  # robosuite: +1 closes
