@@ -142,6 +142,9 @@ DESIGN3 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_3, CANDIDATE_
 CONFIRM4_SEEDS = range(20, 25)
 CONFIRM4 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_4)}
 DESIGN5 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_5)}
+# candidate 5 on the experts' sixth block, init states 25-29, which no decision looked at
+CONFIRM5_SEEDS = range(25, 30)
+CONFIRM5 = DESIGN5
 LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4)
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
@@ -221,7 +224,7 @@ def _plot(records, path) -> None:
     for ax, b in zip(axes, BACKBONES):
         for seeds, marker, label in ((DESIGN_SEEDS, "o", "design 0-4"), (CONFIRM_SEEDS, "s", "confirm 5-9"),
                                      (CONFIRM2_SEEDS, "^", "confirm 10-14"), (CONFIRM3_SEEDS, "D", "confirm 15-19"),
-                                     (CONFIRM4_SEEDS, "v", "confirm 20-24")):
+                                     (CONFIRM4_SEEDS, "v", "confirm 20-24"), (CONFIRM5_SEEDS, "P", "confirm 25-29")):
             recs = [r for r in _block(records, seeds) if r["backbone"] == b]
             for j, c in enumerate(COMPARED):
                 sel = [r for r in recs if r["config"] == c]
@@ -329,7 +332,11 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                          ("3d. Fourth confirmation block (init states 20-24, n = 50 per cell): the shipped "
                           "default (candidate 4, the release veto), chosen on the design block after the learned "
                           "backbones showed the redirection's cost (section 7); no decision looked at this block",
-                          CONFIRM4_SEEDS)):
+                          CONFIRM4_SEEDS),
+                         ("3e. Fifth confirmation block (init states 25-29, n = 50 per cell): candidate 5 (the "
+                          "shipped default's veto never opening a gripper that holds), designed after the learned "
+                          "confirmation block showed candidate 4's losses (section 7b); no decision looked at this "
+                          "block", CONFIRM5_SEEDS)):
         recs = _block(records, seeds)
         if not any(r["config"] != "baseline" for r in recs):
             continue

@@ -585,7 +585,8 @@ def efficacy(args) -> None:
                                   ("confirm3_others", ef.CONFIRM3_SEEDS, others),
                                   ("design3", ef.DESIGN_SEEDS, ef.DESIGN3),
                                   ("confirm4", ef.CONFIRM4_SEEDS, ef.CONFIRM4),
-                                  ("design5", ef.DESIGN_SEEDS, ef.DESIGN5)):
+                                  ("design5", ef.DESIGN_SEEDS, ef.DESIGN5),
+                                  ("confirm5", ef.CONFIRM5_SEEDS, ef.CONFIRM5)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
                       for b in args.experts.split(",") for t in range(10) for s in seeds]
@@ -676,7 +677,7 @@ def main() -> None:
     ap.add_argument("--weak-modes", default=None, help="learned: modes for the weak siblings (default: --modes)")
     ap.add_argument("--presets", default="default",
                     help="learned: presets run beside the modes (core.config.PRESETS; '' for none)")
-    ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass,design3,confirm4,design5,learned,learned_confirm", help="efficacy: which stages to run")
+    ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass,design3,confirm4,design5,confirm5,learned,learned_confirm", help="efficacy: which stages to run")
     ap.add_argument("--experts", default="expert_clean,expert_jitter,expert_faulty,expert_place_bias",
                     help="efficacy: the scripted backbones (eval/efficacy.py BACKBONES) of the LIBERO stages")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
