@@ -148,6 +148,9 @@ CONFIRM5 = DESIGN5
 LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4)
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
+# pairs in a complete LIBERO cell (10 tasks x 5 init states): the block sections show complete cells
+# only, so a stage that was cut short (its units on disk are kept and resumed) shows no partial row
+FULL_CELL = 50
 LIFT_DESIGN, LIFT_CONFIRM = 7, 100  # first seeds of the Lift / Fetch blocks (20 trials each)
 
 
@@ -293,7 +296,9 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                        "paired difference in success with a 95 % interval (normal approximation of the mean "
                        "per-pair difference). `jerk / baseline's`: mean over pairs of the episode's mean jerk "
                        "over baseline's. `tasks that lost`: tasks where this configuration succeeded fewer "
-                       "times than baseline (how many fewer)."))
+                       "times than baseline (how many fewer). The report shows every stage's units on disk, "
+                       "whichever invocation ran them; in the LIBERO block sections, complete cells only (50 "
+                       "pairs)."))
     screen = _block(records, SCREEN_SEEDS)
     if any(r["config"] in ALONE for r in screen):
         lines += ["## 1. Each correction alone (design block, init states 0-1, n = 20 per cell: a screen)\n",
@@ -346,7 +351,7 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                 if c == "baseline":
                     continue
                 p = paired(recs, c, b)
-                if p["n"]:
+                if p["n"] >= FULL_CELL:
                     lines.append(paired_row(f"{b} / {c}", p))
     lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
     if lift:
@@ -394,7 +399,7 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
         for b in dict.fromkeys(r["backbone"] for r in recs):
             for c in dict.fromkeys(r["config"] for r in recs if r["backbone"] == b):
                 p = paired(recs, c, b) if c != "baseline" else None
-                if p and p["n"]:
+                if p and p["n"] >= FULL_CELL:
                     lines.append(paired_row(f"{b} / {c}", p))
     lines += _headroom_lines(records, learned)
     _plot(records, out / "success_jerk.png")

@@ -385,18 +385,6 @@ def _train_backbones():
     return train_backbones
 
 
-def _records_on_disk(units: list, out: Path) -> list[dict]:
-    """The records of units already on disk, read as they are (no checkpoint needed, nothing run);
-    exits naming what is missing."""
-    missing = [u.key for u in units if not (out / "units" / f"{u.key}.json").exists()]
-    if missing:
-        raise SystemExit(f"experiments: {len(missing)} learned units are not on disk (e.g. {missing[0]}); "
-                         "train the checkpoints (policies/train_backbones.py) and drop --learned-on-disk to run them")
-    payloads = [json.loads((out / "units" / f"{u.key}.json").read_text()) for u in units]
-    COMPUTE_S[0] = sum(p["seconds"] for p in payloads)
-    return [r for p in payloads for r in p["records"]]
-
-
 def _checkpoints(names: list[str], root: str, fix: str) -> dict[str, Path]:
     """Each learned backbone's checkpoint directory; one clear error naming the missing ones."""
     ckpts = {n: _train_backbones().trained_or_committed(n, root) for n in names}
@@ -556,14 +544,16 @@ def learned_checkpoints(args) -> None:
     write(out, lines, records)
 
 
-def efficacy(args) -> None:
+EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,"
+                   "lift,lowpass,design3,confirm4,design5,confirm5,learned,learned_confirm")
+EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
+LEARNED = "act_single,act_single_weak,act_chunk,act_chunk_weak,diffusion_chunk"
+
+
+def _efficacy_units(stages: list[str], experts: list[str]) -> list:
+    """The scripted backbones' units (LIBERO, Lift, Fetch) of the efficacy stages named."""
     import efficacy as ef
 
-    out = RESULTS / "efficacy"
-    stages = args.stages.split(",")
-    unknown = [b for b in args.experts.split(",") if b not in ef.BACKBONES]
-    if unknown:
-        raise SystemExit(f"experiments: unknown expert backbone(s) {unknown}; choose from {', '.join(ef.BACKBONES)}")
     units = []
     if "ablation" in stages:
         units += [Unit(b, name, ef.ALONE[name].to_dict(), t, s, 1, ef.BACKBONES[b])
@@ -589,7 +579,7 @@ def efficacy(args) -> None:
                                   ("confirm5", ef.CONFIRM5_SEEDS, ef.CONFIRM5)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
-                      for b in args.experts.split(",") for t in range(10) for s in seeds]
+                      for b in experts for t in range(10) for s in seeds]
     lift_cfgs = {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}
     if "lift" in stages:
         for first in (ef.LIFT_DESIGN, ef.LIFT_CONFIRM):
@@ -613,38 +603,64 @@ def efficacy(args) -> None:
                 if am == 0.8:
                     units.append(Unit(f"lift sigma={sg:.2f}", f"default, alpha_max={am}", cfg.to_dict(), 0,
                                       ef.LIFT_DESIGN, 20, expert, scene="lift"))
-    units = list(dict.fromkeys(units))  # the screen's baselines are also design units
-    learned_records, learned_secs, learned_compute = [], 0.0, 0.0
-    if "learned" in stages or "learned_confirm" in stages:
-        names = args.learned.split(",")
-        if args.learned_on_disk:  # report only: the units as they are on disk (each records its weights' sha256)
-            ckpts = {n: Path(args.checkpoints) / n for n in names}
-        else:
-            ckpts = _checkpoints(names, args.checkpoints,
-                                 "run policies/record_dataset.py then policies/train_backbones.py")
-        blocks = []
-        if "learned" in stages:  # the default, the candidates (and, on LEARNED_SCREENED, the default's
-            # rules one by one), design block 0-4
-            blocks.append((ef.DESIGN_SEEDS, names, {"baseline": PhysVLAConfig(mode="baseline"),
-                                                    ef.DEFAULT_V2: ef.COMPARED[ef.DEFAULT_V2],
-                                                    **{k: ef.COMPARED[k] for k in ef.LEARNED_CANDIDATES}}))
-            blocks.append((ef.DESIGN_SEEDS, [n for n in names if n in ef.LEARNED_SCREENED],
-                           {k: ef.ALONE[k] for k in ef.LEARNED_ALONE}))
-        if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
-            for name, only in ef.LEARNED_CONFIRM.items():
-                blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
-                               {name: ef.COMPARED[name]}))
-        # the learned experiment's units (same keys, same weights): shared with it, run once
-        lunits = [Unit(n, name, cfg.to_dict(), t, seeds.start, len(seeds), policy=str(ckpts[n].resolve()))
-                  for seeds, bbs, configs in blocks for n in bbs for name, cfg in configs.items() for t in range(10)]
-        if args.learned_on_disk:
-            learned_records, learned_secs = _records_on_disk(lunits, RESULTS / "learned"), 0.0
-        else:
-            learned_records, learned_secs = run_units(lunits, RESULTS / "learned", args.workers, args.backend)
-        learned_compute = COMPUTE_S[0]
-    records, secs = run_units(units, out, args.workers, args.backend)
-    COMPUTE_S[0] += learned_compute
-    ef.report(out, records, secs + learned_secs, len(units), header, write, learned=learned_records)
+    return list(dict.fromkeys(units))  # the screen's baselines are also design units
+
+
+def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) -> list:
+    """The learned backbones' units of the efficacy stages `learned` and `learned_confirm`."""
+    import efficacy as ef
+
+    blocks = []
+    if "learned" in stages:  # the default, the candidates (and, on LEARNED_SCREENED, the default's
+        # rules one by one), design block 0-4
+        blocks.append((ef.DESIGN_SEEDS, names, {"baseline": PhysVLAConfig(mode="baseline"),
+                                                ef.DEFAULT_V2: ef.COMPARED[ef.DEFAULT_V2],
+                                                **{k: ef.COMPARED[k] for k in ef.LEARNED_CANDIDATES}}))
+        blocks.append((ef.DESIGN_SEEDS, [n for n in names if n in ef.LEARNED_SCREENED],
+                       {k: ef.ALONE[k] for k in ef.LEARNED_ALONE}))
+    if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
+        for name, only in ef.LEARNED_CONFIRM.items():
+            blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
+                           {name: ef.COMPARED[name]}))
+    return [Unit(n, name, cfg.to_dict(), t, seeds.start, len(seeds), policy=str(ckpts[n].resolve()))
+            for seeds, bbs, configs in blocks for n in bbs for name, cfg in configs.items() for t in range(10)]
+
+
+def _present(units: list, out: Path) -> tuple[list[dict], float, int]:
+    """Records and summed compute seconds of the units on disk (missing ones are left out), and how many."""
+    payloads = [json.loads(f.read_text()) for u in units if (f := out / "units" / f"{u.key}.json").exists()]
+    return [r for p in payloads for r in p["records"]], sum(p["seconds"] for p in payloads), len(payloads)
+
+
+def efficacy(args) -> None:
+    """Runs the units of the stages named (units on disk are skipped), then writes the report from
+    every stage's units on disk, whichever invocation ran them: running one stage never drops the
+    others' sections from eval/results/efficacy/README.md."""
+    import efficacy as ef
+
+    out = RESULTS / "efficacy"
+    stages, every = args.stages.split(","), EFFICACY_STAGES.split(",")
+    unknown = [s for s in stages if s not in every]
+    if unknown:
+        raise SystemExit(f"experiments: unknown efficacy stage(s) {unknown}; choose from {EFFICACY_STAGES}")
+    experts = args.experts.split(",")
+    unknown = [b for b in experts if b not in ef.BACKBONES]
+    if unknown:
+        raise SystemExit(f"experiments: unknown expert backbone(s) {unknown}; choose from {', '.join(ef.BACKBONES)}")
+    _, secs = run_units(_efficacy_units(stages, experts), out, args.workers, args.backend)
+    learned_secs = 0.0
+    names = args.learned.split(",")
+    if ("learned" in stages or "learned_confirm" in stages) and not args.learned_on_disk:
+        ckpts = _checkpoints(names, args.checkpoints, "run policies/record_dataset.py then policies/train_backbones.py")
+        _, learned_secs = run_units(_learned_units(stages, names, ckpts), RESULTS / "learned", args.workers,
+                                    args.backend)
+    # the report: every stage's units on disk (each unit records the weights' sha256 it ran with)
+    shown = list(dict.fromkeys([*LEARNED.split(","), *names]))
+    records, compute, n = _present(_efficacy_units(every, list(dict.fromkeys([*EXPERTS.split(","), *experts]))), out)
+    lunits = _learned_units(every, shown, {b: Path(args.checkpoints) / b for b in shown})
+    learned_records, learned_compute, n_learned = _present(lunits, RESULTS / "learned")
+    COMPUTE_S[0] = compute + learned_compute
+    ef.report(out, records, secs + learned_secs, n + n_learned, header, write, learned=learned_records)
 
 
 def main() -> None:
@@ -663,12 +679,12 @@ def main() -> None:
                     help="learned_fixes: recipes trained as shipped and with --raw-env")
     # diffusion_single is left out by default: 10 denoising passes per control step make it ~10x
     # slower to evaluate on this CPU than the others
-    ap.add_argument("--learned", default="act_single,act_single_weak,act_chunk,act_chunk_weak,diffusion_chunk",
+    ap.add_argument("--learned", default=LEARNED,
                     help="learned: which trained recipes (of policies/train_backbones.py)")
     ap.add_argument("--modes", default=",".join(MODES), help="learned: which of the four modes")
     ap.add_argument("--learned-on-disk", action="store_true",
-                    help="efficacy: read the learned stages' units from disk as they are (no checkpoints needed, "
-                         "none run; for regenerating the report on a machine without the trained weights)")
+                    help="efficacy: run no learned unit (no checkpoints needed); the report shows the learned units "
+                         "on disk as they are")
     ap.add_argument("--ckpts", default="act_single@4000,act_single_cpu@4800,act_single_cpu@6400,act_single_cpu@8000,"
                                        "act_chunk@2400,act_chunk_cpu@2400,act_chunk_cpu@3600,act_chunk_cpu@4800,"
                                        "act_chunk_cpu@6000,act_single@20000,act_single_cpufull@20000",
@@ -677,8 +693,9 @@ def main() -> None:
     ap.add_argument("--weak-modes", default=None, help="learned: modes for the weak siblings (default: --modes)")
     ap.add_argument("--presets", default="default",
                     help="learned: presets run beside the modes (core.config.PRESETS; '' for none)")
-    ap.add_argument("--stages", default="ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,lift,lowpass,design3,confirm4,design5,confirm5,learned,learned_confirm", help="efficacy: which stages to run")
-    ap.add_argument("--experts", default="expert_clean,expert_jitter,expert_faulty,expert_place_bias",
+    ap.add_argument("--stages", default=EFFICACY_STAGES,
+                    help="efficacy: which stages to run (the report shows every stage's units on disk)")
+    ap.add_argument("--experts", default=EXPERTS,
                     help="efficacy: the scripted backbones (eval/efficacy.py BACKBONES) of the LIBERO stages")
     ap.add_argument("--backend", choices=BACKENDS, default="process",
                     help="process pool (default) or ray (joins $RAY_ADDRESS or starts a local Ray)")

@@ -1,0 +1,60 @@
+"""eval/experiments.py efficacy: the report shows every stage's units on disk, whichever stages ran.
+
+A run of one stage once rewrote eval/results/efficacy/README.md with that stage's section alone
+(f6127d5 committed such a report: sections 1-7 were gone)."""
+
+import json
+import sys
+from argparse import Namespace
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "eval"))
+import efficacy as ef  # noqa: E402
+import experiments  # noqa: E402
+
+
+def _write_units(out: Path, stage: str, success) -> int:
+    """Fake records for the units of one stage (expert_clean only): success(config, task, seed) -> bool."""
+    units = experiments._efficacy_units([stage], ["expert_clean"])
+    (out / "units").mkdir(parents=True, exist_ok=True)
+    for u in units:
+        rec = {"backbone": u.backbone, "config": u.config_name, "task_id": u.task_id, "seed": u.first_seed,
+               "scene": u.scene, "success": bool(success(u.config_name, u.task_id, u.first_seed)),
+               "mean_jerk": 2.0}
+        (out / "units" / f"{u.key}.json").write_text(json.dumps({"unit": {}, "seconds": 1.0, "records": [rec]}))
+    return len(units)
+
+
+def _args(stages: str) -> Namespace:
+    return Namespace(stages=stages, experts="expert_clean", learned="act_single", learned_on_disk=True,
+                     checkpoints="nowhere", workers=1, backend="process")
+
+
+def test_one_stage_run_keeps_every_stage_on_disk(tmp_path, monkeypatch):
+    monkeypatch.setattr(experiments, "RESULTS", tmp_path)
+    ran = []
+    monkeypatch.setattr(experiments, "run_units", lambda units, out, w, b: (ran.extend(units), ([], 0.0))[1])
+    # design block: default v2 wins task 0's five pairs; block 20-24: the default loses task 3's five
+    n = _write_units(tmp_path / "efficacy", "design", lambda c, t, s: c != "baseline" and t == 0 or t in (1, 2))
+    n += _write_units(tmp_path / "efficacy", "confirm4", lambda c, t, s: not (c != "baseline" and t == 3))
+    experiments.efficacy(_args("confirm4"))
+    assert {u.config_name for u in ran} == set(ef.CONFIRM4)  # only the stage asked for was run
+    text = (tmp_path / "efficacy" / "README.md").read_text()
+    assert "## 2. Design block" in text and "## 3d. Fourth confirmation block" in text
+    rows = {line.split(" | ")[0].lstrip("| "): line for line in text.splitlines() if line.startswith("| expert_clean")}
+    assert "| 50 | 20% | 30% | +10 pp" in rows["expert_clean / default v2"]
+    assert "| 50 | 100% | 90% | -10 pp" in rows["expert_clean / default"] and "T3 -5" in rows["expert_clean / default"]
+    assert len(json.loads((tmp_path / "efficacy" / "records.json").read_text())) == n
+
+
+def test_a_cut_short_cell_is_left_out(tmp_path, monkeypatch):
+    monkeypatch.setattr(experiments, "RESULTS", tmp_path)
+    monkeypatch.setattr(experiments, "run_units", lambda units, out, w, b: ([], 0.0))
+    _write_units(tmp_path / "efficacy", "confirm4", lambda c, t, s: True)
+    cut = [f for f in (tmp_path / "efficacy" / "units").iterdir() if "__default__" in f.name][:7]
+    for f in cut:
+        f.unlink()
+    experiments.efficacy(_args("confirm4"))
+    text = (tmp_path / "efficacy" / "README.md").read_text()
+    assert "expert_clean / default |" not in text  # 43 of 50 pairs: no partial row
