@@ -51,6 +51,8 @@ from lerobot.lerobot_types import TransitionKey
 from lerobot_physvla.sim import libero_sim
 from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.core.direct_call import direct_entry
+from lerobot_physvla.core.tick import stream_tick
 from lerobot_physvla.sim.experts import PickPlaceExpert
 from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
 from lerobot_physvla.core.state import PhysState
@@ -355,13 +357,17 @@ def cold_floor(rows: np.ndarray, actions: np.ndarray, repeats: int = 300) -> dic
     junk = np.ones(8_000_000)
     arrays = [np.zeros((2, 3)) for _ in range(21)]
     a32 = a.astype(np.float32)
+    direct = direct_entry(stream_tick, a32, flat, c._fws, c._iws, c._bws)
     pieces = {"trivial compiled call": lambda: _trivial(a),
               "trivial compiled call, 8 array arguments": lambda: _trivial8(a, *arrays[:7]),
               "trivial compiled call, 21 array arguments": lambda: _trivial21(a, *arrays[:20]),
               "torch tensor .numpy()": lambda: t.numpy(),
               "float32 cast + torch.from_numpy": lambda: torch.from_numpy(a.astype(np.float32)),
               "corrector tick (correct_packed)": lambda: c.correct_packed(a, flat),
-              "corrector stream tick (correct_stream, float32 in and out)": lambda: c.correct_stream(a32, flat)}
+              "corrector stream tick (correct_stream, float32 in and out)": lambda: c.correct_stream(a32, flat),
+              "stream_tick through numba's dispatch": lambda: stream_tick(a32, flat, c._fws, c._iws, c._bws),
+              "stream_tick's compiled overload called directly (what correct_stream calls)":
+                  lambda: direct(a32, flat, c._fws, c._iws, c._bws)}
     out = {}
     for name, fn in pieces.items():
         fn()
@@ -544,8 +550,9 @@ def main() -> None:
               "more array arguments it unboxes, so the state read (`pack_live_buf`: the row, one view of the MjData "
               "buffer, an int arena, the header constants) and the LeRobot step's tick (`correct_stream`: the action, "
               "the state, three arenas) each take all they need in "
-              "one call with few arguments; what remains is the tensor conversions at the step's two ends and "
-              "lerobot's own Python around them (docs/method.md \"Speed\").\n",
+              "one call with few arguments, and both call the compiled code directly, without numba's per-call type "
+              "dispatch (the last two rows; core/direct_call.py); what remains is the tensor conversions at the "
+              "step's two ends and lerobot's own Python around them (docs/method.md \"Speed\").\n",
               "| piece | warm p50 (us) | cold p50 (us) | cold / warm |", "|---|---|---|---|"]
     for name, r in floor.items():
         lines.append(f"| {name} | {r['warm']:.1f} | {r['cold']:.1f} | {r['cold'] / r['warm']:.1f} |")

@@ -9,7 +9,9 @@ module (and only this module) reaches into it:
   (1) adapts the env config (the caller turns `libero` into `libero_physvla`: state export),
   (2) appends a corrector step to the policy postprocessor that `make_pre_post_processors`
       returns (unless the checkpoint's own postprocessor already has one), and
-  (3) hands the step to a callback after the evaluation (diagnostics beside eval_info.json).
+  (3) hands the step to a callback before each rollout (between rollout batches, outside any
+      control tick: the diagnostics recorder compacts the finished batch there), and
+  (4) hands the step to a callback after the evaluation (diagnostics beside eval_info.json).
 It imports nothing of lerobot_physvla: the caller passes in what it needs, so the env type and
 the steps can import this module without a cycle.
 """
@@ -76,13 +78,15 @@ def install_eval_hook(
     on_done: Callable[[object, object], None],
     attach: Callable[[object], object],
     adapt_env: Callable[[object], object],
+    before_rollout: Callable[[object], None] | None = None,
 ) -> None:
     """Replace lerobot-eval's `eval_main` (see module docstring).
 
     step_type: the corrector step class (a postprocessor holding one keeps it); make_step() builds
     one to append; attach(step) adapts one the checkpoint already has; adapt_env(env_cfg) returns
     the env config to evaluate; on_done(cfg, step) runs after the evaluation with the parsed
-    EvalPipelineConfig.
+    EvalPipelineConfig; before_rollout(step) runs before each of lerobot-eval's `rollout` calls
+    (between rollout batches, never inside a control tick).
     """
     check_lerobot_version()
     from lerobot.configs import parser
@@ -91,6 +95,7 @@ def install_eval_hook(
 
     inner = lerobot_eval.eval_main.__wrapped__  # the function under @parser.wrap()
     original_factory = lerobot_eval.make_pre_post_processors
+    original_rollout = lerobot_eval.rollout
 
     def eval_main(cfg):
         cfg.env = adapt_env(cfg.env)
@@ -108,11 +113,18 @@ def install_eval_hook(
             logging.info("physvla: corrector appended to the policy postprocessor: %s", step.config)
             return pre, post
 
+        def rollout(*args, **kwargs):
+            if before_rollout is not None and "step" in holder:
+                before_rollout(holder["step"])
+            return original_rollout(*args, **kwargs)
+
         lerobot_eval.make_pre_post_processors = make_pre_post_processors
+        lerobot_eval.rollout = rollout
         try:
             return inner(cfg)
         finally:
             lerobot_eval.make_pre_post_processors = original_factory
+            lerobot_eval.rollout = original_rollout
             if "step" in holder:
                 on_done(cfg, holder["step"])
 

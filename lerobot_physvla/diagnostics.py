@@ -181,11 +181,14 @@ class _Segment:
     """Per-call rows of one batch size, in growable arrays (capacity doubles when full)."""
 
     HEADER = 6  # packed-state prefix kept per env: valid, episode_step, dt, eef_pos (state.py order)
+    # first rows held: a LIBERO episode (at most 520 steps, libero_10) fits, so no rollout batch grows
+    # the arrays inside a control tick (a doubling copies every row: ~40-100 us at B = 1)
+    CAPACITY = 512
 
     def __init__(self, b: int, a_dim: int, n_diag: int, n_extra: int, n_state: int | None):
         self.b, self.a_dim, self.n_diag, self.n_extra, self.n_state = b, a_dim, n_diag, n_extra, n_state
         self.n = 0
-        cap = 64
+        cap = self.CAPACITY
         self.raw, self.out = np.zeros((cap, b, a_dim)), np.zeros((cap, b, a_dim))
         self.header = np.zeros((cap, b, self.HEADER))
         self.diag = np.zeros((cap, b, n_diag))
@@ -269,7 +272,8 @@ class EpisodeRecorder:
         n_state = flat.shape[1] if self.save_states else None
         seg = self._seg
         if seg is None or not seg.fits(b, a_dim, diag.shape[1], max(n_extra, seg.n_extra), n_state):
-            self._finish()
+            if self._segments:  # rows of another shape: that recording is over
+                self._finish()
             seg = self._seg = _Segment(b, a_dim, diag.shape[1], n_extra, n_state)
             self._segments.append(seg)
         elif flat[0, 1] == 0.0 and seg.n and not flat[:, 1].any() and seg.header[seg.n - 1, :, 1].any():
@@ -279,6 +283,18 @@ class EpisodeRecorder:
             self._segments.append(seg)
         seg.append(raw, out, flat, diag, extra, t_total_s * 1e6 / b)
         self._episodes = None
+
+    def end_batch(self) -> None:
+        """The rollout batch recorded so far is over: split it into episodes and compact them now.
+
+        lerobot-eval's hook calls it before each rollout, outside any control tick (compacting costs
+        ~1-2 ms per episode); without it the first call of the next batch does the same."""
+        seg = self._seg
+        if seg is None or not seg.n:
+            return
+        self._finish()
+        seg.clear()
+        self._segments.append(seg)
 
     def _finish(self) -> None:
         """Splits the recorded rows into episodes, compacts them and forgets the rows."""

@@ -45,14 +45,21 @@ def test_recorder_splits_episodes_and_stops_at_success(tmp_path):
 
 def test_recording_grows_past_its_first_capacity_and_keeps_states(tmp_path):
     rec, corr = EpisodeRecorder(save_states=True), Corrector(PhysVLAConfig(), 2)
-    for t in range(150):  # one episode per env, longer than the first capacity (64 rows)
+    n = 2 * rec_capacity() + 10  # one episode per env, longer than twice the first capacity
+    for t in range(n):
         feed(rec, corr, [t, t], [0, 0], 0.1)
     eps = rec.episodes
-    assert [len(e.raw) for e in eps] == [150, 150] and eps[0].states.shape == (150, packed_size(7))
-    np.testing.assert_array_equal(eps[1].states[:, 1], np.arange(150))  # episode_step column of the packed rows
-    assert rec.summary()["steps"] == 300
+    assert [len(e.raw) for e in eps] == [n, n] and eps[0].states.shape == (n, packed_size(7))
+    np.testing.assert_array_equal(eps[1].states[:, 1], np.arange(n))  # episode_step column of the packed rows
+    assert rec.summary()["steps"] == 2 * n
     rec.write(tmp_path)
-    assert np.load(tmp_path / "physvla_states.npz")["ep1_states"].shape[0] == 150
+    assert np.load(tmp_path / "physvla_states.npz")["ep1_states"].shape[0] == n
+
+
+def rec_capacity() -> int:
+    from lerobot_physvla.diagnostics import _Segment
+
+    return _Segment.CAPACITY
 
 
 def test_a_listener_call_copies_what_it_keeps():
@@ -103,3 +110,33 @@ def test_finished_batches_are_compacted_with_the_same_records_and_flat_memory():
     assert compact.records()[0]["success"] and compact.records()[0]["efficiency"] == 0.5
     assert json.dumps(full.summary(), sort_keys=True) == json.dumps(compact.summary(), sort_keys=True)  # NaN-aware
 
+
+
+def test_a_batch_ended_between_rollouts_compacts_there_with_the_same_records():
+    """lerobot-eval's hook ends each rollout batch before the next rollout starts: the next batch's
+    first call then compacts nothing (the 1-2 ms per episode leave the control tick), and the
+    records are those of a recorder that compacts in that first call."""
+    from lerobot_physvla.core.config import LAYOUTS
+
+    lay = LAYOUTS["libero_osc_pose"]
+    in_tick, between = EpisodeRecorder(layout=lay, keep_steps=3), EpisodeRecorder(layout=lay, keep_steps=3)
+    c1, c2 = Corrector(PhysVLAConfig(), 2), Corrector(PhysVLAConfig(), 2)
+    log = []
+    finish = between._finish
+    between._finish = lambda: (log.append("finish"), finish())[1]
+    for _ in range(5):
+        _run_batches(in_tick, c1, 1, 30)
+        log.append("end")
+        between.end_batch()  # the hook's call before a rollout (nothing recorded yet the first time)
+        log.append("rollout")
+        _run_batches(between, c2, 1, 30)
+    log.append("end")
+    between.end_batch()
+    # each compaction right after an end_batch, none inside a call of the recorder
+    assert log == ["end", "rollout"] + ["end", "finish", "rollout"] * 4 + ["end", "finish"]
+    a, b = in_tick.records(), between.records()
+    assert len(a) == len(b) == 10
+    for ra, rb in zip(a, b):
+        for key, value in rb.items():
+            assert ra[key] == value or (value != value and ra[key] != ra[key]), key
+    assert json.dumps(in_tick.summary(), sort_keys=True) == json.dumps(between.summary(), sort_keys=True)

@@ -27,6 +27,7 @@ import numpy as np
 from numba import njit
 
 from lerobot_physvla.core.config import PhysVLAConfig
+from lerobot_physvla.core.direct_call import direct_entry
 from lerobot_physvla.core.state import field_offsets
 
 # numba caches a compiled function by its own file only: every cached kernel here calls njit
@@ -397,6 +398,11 @@ def pack_live_row(row, o, qpos, qvel, qM, bias, tau_a, tau_b, tau_c, jacp, xpos,
 F_QPOS, F_QVEL, F_QM, F_BIAS, F_TAU_A, F_TAU_B, F_TAU_C, F_XPOS, F_SITE_XPOS, F_CDOF, F_SUBTREE_COM = range(11)
 
 
+# pack_live_buf's compiled overload for (C float64 row, its buffer view, its int arena, C float64 (k, 2)
+# consts): read_live_into checks row and consts before it calls it; the view and arena are its own
+_PACK_LIVE_BUF: list = [None]
+
+
 @njit(cache=True, error_model="numpy")
 def pack_live_buf(row, buf, li, consts):
     """As pack_live_row, reading every MjData field from one float64 view of the data's buffer
@@ -618,7 +624,16 @@ class MujocoDynamicsOracle:
         """
         fast = self._buffer_arena(data, points, fingers)
         if fast is not None:
-            pack_live_buf(row, fast[0], fast[1], self._no_consts if consts is None else consts)
+            consts = self._no_consts if consts is None else consts
+            if (type(row) is np.ndarray and row.dtype == np.float64 and row.ndim == 1 and row.flags.carray
+                    and type(consts) is np.ndarray and consts.dtype == np.float64 and consts.ndim == 2
+                    and consts.flags.carray):
+                call = _PACK_LIVE_BUF[0]
+                if call is None:  # the compiled overload, called without numba's dispatch (core/direct_call.py)
+                    call = _PACK_LIVE_BUF[0] = direct_entry(pack_live_buf, row, fast[0], fast[1], consts)
+                call(row, fast[0], fast[1], consts)
+            else:
+                pack_live_buf(row, fast[0], fast[1], consts)
             return
         _, forces, xpos, site_xpos = self._views(data)
         if self.site_id >= 0:

@@ -115,7 +115,13 @@ def activate_eval(argv: list[str]) -> None:
     def make_step():
         return attach(PhysVLACorrectorStep(config=cfg.to_dict()))
 
-    compat.install_eval_hook(PhysVLACorrectorStep, make_step, _write_diagnostics, attach, as_physvla_env)
+    def before_rollout(step):  # compact the finished rollout batch here, not in the next batch's first tick
+        recorder = getattr(step, "_physvla_recorder", None)
+        if recorder is not None:
+            recorder.end_batch()
+
+    compat.install_eval_hook(PhysVLACorrectorStep, make_step, _write_diagnostics, attach, as_physvla_env,
+                             before_rollout)
 
 
 def eval_main() -> None:

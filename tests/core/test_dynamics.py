@@ -214,3 +214,8 @@ def test_the_one_buffer_read_equals_the_field_by_field_read(eef, constraint, fin
         del oracle._buffer_arena
         np.testing.assert_array_equal(one, by_field)
         assert np.isfinite(one[2:]).sum() > 3 * len(joints)  # J_pos and the rest were written
+        # a row or consts the direct call may not take (strided, Fortran order): numba's dispatch, same row
+        wide, f_consts = np.full(2 * one.size, np.nan), np.asfortranarray(consts)
+        assert not f_consts.flags.c_contiguous
+        oracle.read_live_into(d, wide[::2], None, f_consts, fingers)
+        np.testing.assert_array_equal(wide[::2], one)

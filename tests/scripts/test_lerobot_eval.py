@@ -44,20 +44,21 @@ def _eval(policy, out_dir, extra, env_extra=None, exe="lerobot-eval"):
 
 def test_corrected_state_only_run_executes_exactly_what_the_corrector_says(policies, tmp_path):
     out = tmp_path / "corrected"
-    state_only = ["--env.type=libero_physvla", "--env.cameras=false", "--eval.n_episodes=2",
+    # two rollout batches: the recorder compacts the first between the rollouts (the eval hook's end_batch)
+    state_only = ["--env.type=libero_physvla", "--env.cameras=false", "--eval.n_episodes=4",
                   "--eval.batch_size=2", "--env.episode_length=12"]
     r = _eval(policies["state"], out, [*state_only, "--policy.postprocess=physvla", "--physvla.mode=phys_el",
                                        "--physvla.gripper_rule=veto"], {"PHYSVLA_SAVE_STATES": "1"})
     # the summary table is printed and the report links a plot per episode
-    assert "2 episodes, 24 frames, success 0/2" in r.stdout and "corrector overhead per env-step" in r.stdout
+    assert "4 episodes, 48 frames, success 0/4" in r.stdout and "corrector overhead per env-step" in r.stdout
     report = (out / "physvla_report.md").read_text()
-    for k in range(2):
+    for k in range(4):
         assert f"physvla_plots/episode_{k:04d}.png" in report and (out / f"physvla_plots/episode_{k:04d}.png").is_file()
     info = json.loads((out / "eval_info.json").read_text())
-    assert info["overall"]["n_episodes"] == 2
+    assert info["overall"]["n_episodes"] == 4
     diag = json.loads((out / "physvla_diagnostics.json").read_text())
-    assert diag["episodes"] == 2 and diag["physvla_config"]["gripper_rule"] == "veto"
-    assert diag["passthrough"] == {} and diag["steps"] == 24
+    assert diag["episodes"] == 4 and diag["physvla_config"]["gripper_rule"] == "veto"
+    assert diag["passthrough"] == {} and diag["steps"] == 48
     episodes = [json.loads(line) for line in (out / "physvla_episodes.jsonl").read_text().splitlines()]
     npz = np.load(out / "physvla_states.npz")
     cfg = PhysVLAConfig.from_dict(diag["physvla_config"])
