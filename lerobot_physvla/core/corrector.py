@@ -32,6 +32,7 @@ from lerobot_physvla.core.blend import blend, guard
 from lerobot_physvla.core.branch_a import phase_step
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrections.base import N_MEM, channel_index, params
+from lerobot_physvla.core.direct_call import direct_entry
 from lerobot_physvla.core.dynamics import ELGate, el_gate
 from lerobot_physvla.core.lowpass import N_LP_MEM, adaptive_lowpass
 from lerobot_physvla.core.state import (
@@ -163,6 +164,10 @@ class Corrector:
         self._absolute[:] = absolute
 
     _warm: set = set()  # configurations whose kernels this process has already run
+    # action dtype -> stream_tick's compiled overload for (that dtype's C (B, A) actions, C float64
+    # (B, L) states, the three arenas), called directly (core/direct_call.py); correct_stream checks
+    # dtype, dimensions and C order before it calls one
+    _stream_calls: dict = {}
 
     def _warm_key(self):
         c = self.cfg
@@ -231,8 +236,8 @@ class Corrector:
         whose packed `episode_step` went back (a reset), or that has not been seen since the
         corrector was built or reset, starts afresh first (`reset` of that env).
 
-        Where it can -- actions a C-contiguous float32 / float64 (B, A) numpy array, flat the
-        (B, L) float64 packed states, not profiling -- this is one compiled call
+        Where it can -- actions a C-contiguous, aligned, writeable float32 / float64 (B, A) numpy
+        array, flat the (B, L) float64 packed states (the same), not profiling -- this is one compiled call
         (tick.stream_tick) and the output comes back in the actions' dtype; elsewhere the same in
         steps (resets, then correct_packed), float64.
         """
@@ -240,14 +245,18 @@ class Corrector:
         if type(flat) is np.ndarray and flat.ndim == 2 and flat.shape[1] != self._flat_width:
             self._set_width(flat.shape[1])
         if (type(actions) is np.ndarray and actions.ndim == 2 and actions.dtype in _STREAM_DTYPES
-                and actions.flags.c_contiguous and type(flat) is np.ndarray and flat.ndim == 2
-                and flat.shape[1] == self._flat_width and flat.dtype == np.float64 and flat.flags.c_contiguous
+                and actions.flags.carray and type(flat) is np.ndarray and flat.ndim == 2
+                and flat.shape[1] == self._flat_width and flat.dtype == np.float64 and flat.flags.carray
                 and actions.shape[0] == self.batch_size == flat.shape[0] and actions.shape[1] == self.layout.dim
                 and not self.profile):
             if self._iws_n != self._n:  # the integer parameters of this joint count into the arena
                 self._iws_ip[:] = self._int_params(self._n)
                 self._iws_n = self._n
-            out, events = stream_tick(actions, flat, self._fws, self._iws, self._bws)
+            call = Corrector._stream_calls.get(actions.dtype)
+            if call is None:  # the compiled overload for this action dtype, called without numba's dispatch
+                call = Corrector._stream_calls[actions.dtype] = direct_entry(
+                    stream_tick, actions, flat, self._fws, self._iws, self._bws)
+            out, events = call(actions, flat, self._fws, self._iws, self._bws)
             self.steps += self.batch_size
             self._t_a = self._t_b = _NAN
             self._diag, self._has_diag = None, True

@@ -292,3 +292,38 @@ def test_a_stream_in_one_call_equals_the_stream_in_steps(mode):
         assert np.isfinite(out1).all() and np.abs(out1).max() <= 1.0
         counters += 1
     assert one.guard_counts == steps.guard_counts and one.steps == steps.steps
+
+
+def test_arrays_the_direct_call_cannot_take_go_in_steps_with_the_same_output():
+    """correct_stream calls stream_tick's compiled overload directly (no numba dispatch, no type
+    check): a read-only or misaligned action, or a read-only state, must take the checked path in
+    steps, with the same output as the direct call."""
+    from lerobot_physvla.core.config import PRESETS
+    from lerobot_physvla.core.direct_call import direct_entry
+    from lerobot_physvla.core.tick import stream_tick
+
+    direct, checked = Corrector(PRESETS["default"], 2), Corrector(PRESETS["default"], 2)
+    rng = np.random.default_rng(3)
+    for t in range(40):
+        st = make_state(batch_size=2, obj=(0.02 * (30 - t % 30), 0.0, 0.9), seed=t)
+        st.episode_step[:] = t
+        flat = st.pack()
+        a = rng.uniform(-1.5, 1.5, (2, 7)).astype(np.float32)
+        if t % 3 == 0:
+            odd = np.frombuffer(bytearray(a.nbytes + 1), dtype=np.float32, offset=1, count=a.size).reshape(a.shape)
+            odd[:] = a
+            assert not odd.flags.aligned
+        else:
+            odd = a.copy()
+            odd.flags.writeable = False
+        ro_flat = flat.copy()
+        ro_flat.flags.writeable = t % 2 == 0
+        out1, out2 = direct.correct_stream(a, flat), checked.correct_stream(odd, ro_flat)
+        np.testing.assert_array_equal(out1, out2.astype(np.float32))
+    # the direct entry is the dispatcher's own compiled code: same result on the same arrays
+    c1, c2 = Corrector(PRESETS["default"], 2), Corrector(PRESETS["default"], 2)
+    call = direct_entry(stream_tick, a, flat, c1._fws, c1._iws, c1._bws)
+    r1, e1 = call(a, flat, c1._fws, c1._iws, c1._bws)
+    r2, e2 = stream_tick(a, flat, c2._fws, c2._iws, c2._bws)
+    np.testing.assert_array_equal(r1, r2)
+    assert e1 == e2
