@@ -1,17 +1,22 @@
 """Does the corrector do good? Per-correction ablation, candidates, and the shipped default vs
 the paper's two readings and `temporal`, on a design and a confirmation seed block (issue #10).
 
-    .venv/bin/python eval/experiments.py efficacy [--stages ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,lift,lowpass]
+    .venv/bin/python eval/experiments.py efficacy [--stages design5,confirm5,...] [--learned-on-disk]
 
-Stages (each resumable; units on disk are skipped):
+Stages (each resumable; units on disk are skipped; the report shows every stage's units on disk,
+whichever invocation ran them):
 - ablation: each Branch A correction alone (the paper's four at full authority, and the options
   beyond the paper) on the clean expert (harm) and on the backbone whose failure it targets,
   LIBERO init states 0-1 of the design block (n = 20 per cell: a screen).
 - design: baseline and the candidate default on init states 0-4 (n = 50); temporal and the
   main-text reading on these seeds are eval/results/table2.
 - confirm: baseline and candidate 1 on init states 5-9 (n = 50), a block no decision looked at;
-  confirm2: default v1 on init states 10-14; confirm3: the shipped default on init states 15-19;
-  confirm3_others (confirm_others): temporal and the paper's two readings on 15-19 (5-9).
+  confirm2: default v1 on init states 10-14; confirm3: default v2 on init states 15-19;
+  confirm3_others (confirm_others): temporal and the paper's two readings on 15-19 (5-9);
+  design3 / confirm4: candidate 3 and default v3 on 0-4, default v3 on 20-24; design5 / confirm5:
+  the shipped default (candidate 5) on 0-4 and 25-29.
+- learned, learned_confirm: the candidates on the learned backbones (eval/results/learned's
+  checkpoints), init states 0-4 and 5-9.
 - diagnosis: default v1's rules one by one on the jitter expert, design block 0-4.
 - lift: robosuite Lift (and Fetch) grasp-phase noise at sigma 0 and 0.40, seeds 7-26 (design)
   and 100-119 (confirmation): the jerk-degradation ratio with success unchanged; and Lift +
@@ -52,15 +57,17 @@ CANDIDATE_3 = "default, redirect_tol=0.015"
 # single-step ACT its place redirection, which steered the held object onto the target's exact
 # centre for the whole place phase, cost 30 pp (section 7). Its units ran as "default", renamed.
 DEFAULT_V2 = "default v2"
-V2 = PRESETS["default"].replace(place_rule="redirect", redirect_tol_m=0.0)
-# candidate 4, the shipped default (v2 with the release veto in place of the redirection). Its units
-# first ran as "default, release_veto=0.02" and were renamed when it shipped.
-CANDIDATE_4 = "default"
-# candidate 5: candidate 4 whose gripper veto never opens a gripper that holds (veto_reopen=False).
-# Designed after candidate 4 lost 7 of 250 pairs on the learned confirmation block 5-9 (section 7b)
-# and all 7 were traced to the veto opening a gripper that held the bowl: a bowl held by its rim
-# hangs 0.060 m below the hand, at veto_height_m, while the phase is still grasp
-CANDIDATE_5 = "default, veto holds"
+V2 = PRESETS["default"].replace(place_rule="redirect", redirect_tol_m=0.0, veto_reopen=True)
+# candidate 4, the third shipped default (v2 with the release veto in place of the redirection). Its
+# units first ran as "default, release_veto=0.02", were renamed "default" when it shipped and
+# "default v3" when candidate 5 replaced it.
+CANDIDATE_4 = "default v3"
+# candidate 5, the shipped default: candidate 4 whose gripper veto never opens a gripper that holds
+# (veto_reopen=False). Designed after candidate 4 lost 7 of 250 pairs on the learned confirmation
+# block 5-9 (section 7b) and all 7 were traced to the veto opening a gripper that held the bowl: a
+# bowl held by its rim hangs 0.060 m below the hand, at veto_height_m, while the phase is still
+# grasp. Its units ran as "default, veto holds" and were renamed "default" when it shipped.
+CANDIDATE_5 = "default"
 
 # Each correction alone (the others' authority 0), phys mode.
 ALONE = {
@@ -105,8 +112,8 @@ COMPARED = {
     # the design block after candidate 3 still held the weak siblings in place (their release point
     # lies beyond 0.015 m): the place-bias experts succeed 70-75 % below 0.02 m of bias, 10-40 %
     # from 0.02 to 0.03 m and never beyond
-    CANDIDATE_4: PRESETS["default"],
-    CANDIDATE_5: PRESETS["default"].replace(veto_reopen=False),
+    CANDIDATE_4: PRESETS["default"].replace(veto_reopen=True),
+    CANDIDATE_5: PRESETS["default"],
     "temporal": PhysVLAConfig(mode="temporal"),
     "paper (eq. 2, c=0.05)": PRESETS["paper"],
     "paper Alg. 1 (c=1)": PRESETS["paper_alg1"],
@@ -132,8 +139,8 @@ LEARNED_ALONE = ("full veto + height + reach", "place redirect")
 LEARNED_SCREENED = ("act_single",)  # the backbone the default cost most: its rules one by one
 LEARNED_CANDIDATES = (CANDIDATE_3, CANDIDATE_4, CANDIDATE_5)
 # on the learned confirmation block 5-9 (config -> backbones it ran on): candidate 3 on act_single
-# only (its design-block cost on the weak siblings had already ruled it out); candidate 4 (the
-# shipped default) and baseline on every learned backbone (None)
+# only (its design-block cost on the weak siblings had already ruled it out); candidates 4 and 5 and
+# baseline on every learned backbone (None)
 LEARNED_CONFIRM = {"baseline": None, CANDIDATE_3: ("act_single",), CANDIDATE_4: None, CANDIDATE_5: None}
 # candidate 3 on the design block (its baselines are the design stage's) and on a fifth block no
 # decision looked at: init states 20-24 for the experts, 5-9 for the learned backbones (their
@@ -145,7 +152,7 @@ DESIGN5 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_5)}
 # candidate 5 on the experts' sixth block, init states 25-29, which no decision looked at
 CONFIRM5_SEEDS = range(25, 30)
 CONFIRM5 = DESIGN5
-LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4)
+LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4, CANDIDATE_5)
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 # pairs in a complete LIBERO cell (10 tasks x 5 init states): the block sections show complete cells
@@ -286,6 +293,38 @@ def _headroom_lines(records, learned) -> list[str]:
     return lines
 
 
+def _expert_headroom_lines(records) -> list[str]:
+    """The same bound for the scripted backbones: a failure-mode expert's failure on an (init state,
+    seed) where the clean expert (same code, no fault, same seed) fails too is not its fault's doing,
+    so no correction of that fault can turn it; the others bound what a corrector can add."""
+    base = {(r["backbone"], r["task_id"], r["seed"]): r["success"] for r in records
+            if r["config"] == "baseline" and r["scene"] == "libero_spatial"}
+    seeds = sorted({s for (_, _, s) in base})
+    rows = []
+    for b in BACKBONES:
+        if b == "expert_clean":
+            continue
+        keys = [(t, s) for (bb, t, s) in base if bb == b and ("expert_clean", t, s) in base]
+        if not keys:
+            continue
+        fail = [k for k in keys if not base[(b, *k)]]
+        reach = sum(base[("expert_clean", *k)] for k in fail)
+        need = int(np.ceil(0.10 * len(keys)))
+        rows.append(f"| {b} | {len(keys)} | {np.mean([base[(b, *k)] for k in keys]):.0%} | {len(fail)} | {reach} | "
+                    f"{len(fail) - reach} | +{100 * reach / len(keys):.0f} pp | {need} of {reach} "
+                    f"({need / reach if reach else float('inf'):.0%}) |")
+    if not rows:
+        return []
+    return ["", f"## 8b. Headroom on the scripted backbones (uncorrected, init states {seeds[0]}-{seeds[-1]}, every "
+                "one with both baselines)\n",
+            "A failure-mode expert's failure where the clean expert, on the same init state and seed, fails too is "
+            "one the fault did not cause (the clean expert fails there with no fault), so a corrector of the fault "
+            "is not expected to turn it; the others bound what such a corrector can add.\n",
+            "| backbone | pairs | baseline | failures | where the clean expert succeeds | where it fails too | "
+            "most a corrector can add | +10 pp needs, of the reachable failures |", "|---|---|---|---|---|---|---|---|",
+            *rows]
+
+
 def report(out, records, secs, n_units, header, write, learned=()) -> None:
     """eval/results/efficacy/README.md: the screen, both blocks paired against baseline, Lift/Fetch."""
     lines = header("Efficacy: per-correction ablation, the shipped default vs baseline, temporal and the paper's "
@@ -334,25 +373,20 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                           "(v1 + the veto's reach; shipped until the release veto replaced it), chosen on the "
                           "design block after 10-14 showed v1's cost; no decision looked at this block",
                           CONFIRM3_SEEDS),
-                         ("3d. Fourth confirmation block (init states 20-24, n = 50 per cell): the shipped "
-                          "default (candidate 4, the release veto), chosen on the design block after the learned "
-                          "backbones showed the redirection's cost (section 7); no decision looked at this block",
+                         ("3d. Fourth confirmation block (init states 20-24, n = 50 per cell): default v3 "
+                          "(candidate 4, the release veto; shipped until candidate 5 replaced it), chosen on the "
+                          "design block after the learned backbones showed the redirection's cost (section 7); no "
+                          "decision looked at this block",
                           CONFIRM4_SEEDS),
-                         ("3e. Fifth confirmation block (init states 25-29, n = 50 per cell): candidate 5 (the "
-                          "shipped default's veto never opening a gripper that holds), designed after the learned "
-                          "confirmation block showed candidate 4's losses (section 7b); no decision looked at this "
-                          "block", CONFIRM5_SEEDS)):
+                         ("3e. Fifth confirmation block (init states 25-29, n = 50 per cell): the shipped default "
+                          "(candidate 5: default v3 whose gripper veto never opens a gripper that holds), designed "
+                          "after the learned confirmation block showed default v3's losses (section 7b); no decision "
+                          "looked at this block", CONFIRM5_SEEDS)):
         recs = _block(records, seeds)
-        if not any(r["config"] != "baseline" for r in recs):
-            continue
-        lines += ["", f"## {title}\n", *PAIRED_HEAD]
-        for b in BACKBONES:
-            for c in COMPARED:
-                if c == "baseline":
-                    continue
-                p = paired(recs, c, b)
-                if p["n"] >= FULL_CELL:
-                    lines.append(paired_row(f"{b} / {c}", p))
+        rows = [paired_row(f"{b} / {c}", p) for b in BACKBONES for c in COMPARED
+                if c != "baseline" and (p := paired(recs, c, b))["n"] >= FULL_CELL]
+        if rows:
+            lines += ["", f"## {title}\n", *PAIRED_HEAD, *rows]
     lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
     if lift:
         lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",
@@ -385,23 +419,23 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                     k = [f"{sum(r['success'] for r in cell)}/{len(cell)}" for cell in cells]
                     lines.append(f"| {sim} | {c} | {k[0]} | {k[1]} | {j[0]:.2f} | {j[1]:.2f} | {(j[1] - j[0]) / j[0]:+.0%} |")
     for title, seeds in (("7. Learned backbones: default v2, its rules one by one, candidate 3 (redirection with "
-                          "a 0.015 m tolerance) and the shipped default (candidate 4: the release veto) (design "
-                          "block, init states 0-4, n = 50 per cell)", DESIGN_SEEDS),
+                          "a 0.015 m tolerance), default v3 (candidate 4: the release veto) and the shipped default "
+                          "(candidate 5: v3's veto never opening a closed gripper) (design block, init states 0-4, "
+                          "n = 50 per cell)", DESIGN_SEEDS),
                          ("7b. Learned backbones, confirmation block (init states 5-9, n = 50 per cell; no corrector "
-                          "decision looked at it before candidates 3 and 4 ran there. Candidate 5 was designed from "
-                          "candidate 4's losses on this block: its row here is a diagnosis, not a confirmation)",
+                          "decision looked at it before candidates 3 and 4 ran there. Candidate 5, the shipped "
+                          "default, was designed from candidate 4's losses on this block: its row here is a "
+                          "diagnosis, not a confirmation; the learned backbones have no other block to confirm on, "
+                          "their demonstrations came from 10-39 and 40-49 stay untouched)",
                           CONFIRM_SEEDS)):
         recs = [r for r in learned if r["seed"] in seeds]
-        if not any(r["config"] != "baseline" for r in recs):
-            continue
-        lines += ["", f"## {title}\n",
-                  "The LeRobot backbones of eval/results/learned (same units, same weights).\n", *PAIRED_HEAD]
-        for b in dict.fromkeys(r["backbone"] for r in recs):
-            for c in dict.fromkeys(r["config"] for r in recs if r["backbone"] == b):
-                p = paired(recs, c, b) if c != "baseline" else None
-                if p and p["n"] >= FULL_CELL:
-                    lines.append(paired_row(f"{b} / {c}", p))
-    lines += _headroom_lines(records, learned)
+        rows = [paired_row(f"{b} / {c}", p) for b in dict.fromkeys(r["backbone"] for r in recs)
+                for c in dict.fromkeys(r["config"] for r in recs if r["backbone"] == b)
+                if c != "baseline" and (p := paired(recs, c, b))["n"] >= FULL_CELL]
+        if rows:
+            lines += ["", f"## {title}\n",
+                      "The LeRobot backbones of eval/results/learned (same units, same weights).\n", *PAIRED_HEAD, *rows]
+    lines += _headroom_lines(records, learned) + _expert_headroom_lines(records)
     _plot(records, out / "success_jerk.png")
     lines += ["", "![success vs jerk per backbone](success_jerk.png)"]
     write(out, lines, records)

@@ -398,7 +398,12 @@ def learned(args) -> None:
     train_backbones = _train_backbones()
     out = RESULTS / "learned"
     names = [n for n in args.learned.split(",")]
-    ckpts = _checkpoints(names, args.checkpoints, "run policies/record_dataset.py then policies/train_backbones.py")
+    ckpts = {n: train_backbones.trained_or_committed(n, args.checkpoints) for n in names}
+    absent = [n for n in names if not (ckpts[n] / "model.safetensors").exists()]
+    if absent and not args.learned_on_disk:
+        raise SystemExit(f"experiments: no checkpoint for {absent} under {args.checkpoints}; run "
+                         "policies/record_dataset.py then policies/train_backbones.py, or pass --learned-on-disk to "
+                         "report their units on disk as they are")
     modes = [m for m in MODES if m in args.modes.split(",")]
     weak_modes = [m for m in modes if m in (args.weak_modes or args.modes).split(",")]
     presets = [p for p in args.presets.split(",") if p]  # the shipped default beside the paper's modes
@@ -411,13 +416,18 @@ def learned(args) -> None:
         Unit(n, m, configs[m].to_dict(), t, s, k, policy=str(ckpts[n].resolve()))
         for n in names for m in modes_of[n] for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
     ]
-    records, secs = run_units(units, out, args.workers, args.backend)
+    records, secs = run_units([u for u in units if u.backbone not in absent], out, args.workers, args.backend)
+    # a backbone whose checkpoint is not here (--learned-on-disk): its units on disk, as they are
+    records += _present([u for u in units if u.backbone in absent], out)[0]
     (out / "recipes").mkdir(exist_ok=True)
     provenance = []
     for n in names:  # the lerobot-train command, seed, device and training time of each checkpoint
         recipe = ckpts[n] / "recipe.json"
-        if recipe.exists():
+        if not recipe.exists():
+            recipe = out / "recipes" / f"{n}.json"  # as the run that trained it saved it
+        elif recipe != out / "recipes" / f"{n}.json":
             (out / "recipes" / f"{n}.json").write_text(recipe.read_text())
+        if recipe.exists():
             r = json.loads(recipe.read_text())
             ds = r.get("dataset", {})
             provenance.append(f"| {n} | {r['recipe']} | {r.get('checkpoint', 'last')} of {r.get('steps', '?')} | "
@@ -425,7 +435,7 @@ def learned(args) -> None:
                               f"{ds.get('episodes', '?')} episodes, {ds.get('frames', '?')} frames | "
                               f"`{str(r.get('commit', '?'))[:7]}` |")
     agg = aggregate(records)
-    rows = [(n, m) for n in names for m in modes_of[n]]
+    rows = [(n, m) for n in names for m in modes_of[n] if (n, m) in agg]  # a cell with no units is left out
     pt, flags = per_task_table(records, names, list(configs))
     plot_success(agg, rows, out / "success_jerk.png", "LIBERO-Spatial, learned backbones x modes")
     lines = header("Learned backbones (LeRobot ACT / Diffusion, state inputs) x modes on LIBERO-Spatial", secs,
@@ -442,8 +452,10 @@ def learned(args) -> None:
                   "|---|---|---|---|---|---|---|", *provenance, ""]
     import efficacy as ef
 
-    paired = [ef.paired_row(f"{n} / {m}", ef.paired(records, m, n)) for n in names for m in modes_of[n]
-              if m != "baseline"]
+    paired = [ef.paired_row(f"{n} / {m}", ef.paired(records, m, n)) for n, m in rows if m != "baseline"]
+    left_out = [f"{n} / {m}" for n in names for m in modes_of[n] if (n, m) not in agg]
+    if left_out:
+        lines += [f"Not run, no checkpoint here (--learned-on-disk) and no units on disk: {', '.join(left_out)}.\n"]
     lines += ["## Aggregate over the 10 tasks\n", *summary_table(agg, rows), "",
               "## Paired outcomes against baseline (same backbone, same init state)\n", *ef.PAIRED_HEAD, *paired, "",
               "## Per task (successes / episodes; (+)/(-) = more / fewer than baseline, same backbone and seeds)\n",
@@ -684,7 +696,8 @@ def main() -> None:
     ap.add_argument("--modes", default=",".join(MODES), help="learned: which of the four modes")
     ap.add_argument("--learned-on-disk", action="store_true",
                     help="efficacy: run no learned unit (no checkpoints needed); the report shows the learned units "
-                         "on disk as they are")
+                         "on disk as they are. learned: a backbone whose checkpoint is not here is reported from its "
+                         "units on disk")
     ap.add_argument("--ckpts", default="act_single@4000,act_single_cpu@4800,act_single_cpu@6400,act_single_cpu@8000,"
                                        "act_chunk@2400,act_chunk_cpu@2400,act_chunk_cpu@3600,act_chunk_cpu@4800,"
                                        "act_chunk_cpu@6000,act_single@20000,act_single_cpufull@20000",

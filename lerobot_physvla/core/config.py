@@ -304,11 +304,12 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # the supplement's Algorithm 1: Phys executes a_phys in full, Dyn blends w a_phys + (1 - w) a_raw
     "paper_alg1": PhysVLAConfig(mode="phys_el", cap=1.0),
     # beyond the paper (docs/method.md): only corrections that are right from the state alone: the
-    # gripper veto where no finger can reach the object, the release veto where the held object
-    # would land more than 2 cm off the target
+    # gripper veto where no finger can reach the object (keeping an open gripper open, never opening
+    # a closed one: it may hold the object), the release veto where the held object would land more
+    # than 2 cm off the target
     "default": PhysVLAConfig(
         mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
-        veto_reach_m=0.10, place_rule="release_veto", redirect_tol_m=0.02, phase_ref="object",
+        veto_reach_m=0.10, veto_reopen=False, place_rule="release_veto", redirect_tol_m=0.02, phase_ref="object",
     ),
 }
 # on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the

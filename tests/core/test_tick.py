@@ -16,7 +16,7 @@ CONFIGS = [
     PhysVLAConfig(mode="phys_el", weighting="task_space", el_mode="gated", cap=1.0),
     PhysVLAConfig(mode="phys_el", chunk="first"),
     PRESETS["default"],
-    PRESETS["default"].replace(place_rule="release_veto", redirect_tol_m=0.02),
+    PRESETS["default"].replace(veto_reopen=True),  # default v3: the veto may open a closed gripper
     PRESETS["default"].replace(place_rule="redirect", redirect_tol_m=0.015),
     PRESETS["default"].replace(mode="phys_el", phase_caps=(0.2, 0.5, 1.0, 1.0), lowpass="adaptive",
                                lowpass_phases="grasp,place"),

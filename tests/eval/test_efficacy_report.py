@@ -44,7 +44,8 @@ def test_one_stage_run_keeps_every_stage_on_disk(tmp_path, monkeypatch):
     assert "## 2. Design block" in text and "## 3d. Fourth confirmation block" in text
     rows = {line.split(" | ")[0].lstrip("| "): line for line in text.splitlines() if line.startswith("| expert_clean")}
     assert "| 50 | 20% | 30% | +10 pp" in rows["expert_clean / default v2"]
-    assert "| 50 | 100% | 90% | -10 pp" in rows["expert_clean / default"] and "T3 -5" in rows["expert_clean / default"]
+    v3 = rows[f"expert_clean / {ef.CANDIDATE_4}"]  # the configuration block 20-24 confirmed
+    assert "| 50 | 100% | 90% | -10 pp" in v3 and "T3 -5" in v3
     assert len(json.loads((tmp_path / "efficacy" / "records.json").read_text())) == n
 
 
@@ -52,9 +53,9 @@ def test_a_cut_short_cell_is_left_out(tmp_path, monkeypatch):
     monkeypatch.setattr(experiments, "RESULTS", tmp_path)
     monkeypatch.setattr(experiments, "run_units", lambda units, out, w, b: ([], 0.0))
     _write_units(tmp_path / "efficacy", "confirm4", lambda c, t, s: True)
-    cut = [f for f in (tmp_path / "efficacy" / "units").iterdir() if "__default__" in f.name][:7]
+    cut = [f for f in (tmp_path / "efficacy" / "units").iterdir() if f"__{ef.CANDIDATE_4}__" in f.name][:7]
     for f in cut:
         f.unlink()
     experiments.efficacy(_args("confirm4"))
     text = (tmp_path / "efficacy" / "README.md").read_text()
-    assert "expert_clean / default |" not in text  # 43 of 50 pairs: no partial row
+    assert "## 3d." not in text and f"expert_clean / {ef.CANDIDATE_4} |" not in text  # 43 of 50 pairs: no row
