@@ -57,17 +57,24 @@ CANDIDATE_3 = "default, redirect_tol=0.015"
 # single-step ACT its place redirection, which steered the held object onto the target's exact
 # centre for the whole place phase, cost 30 pp (section 7). Its units ran as "default", renamed.
 DEFAULT_V2 = "default v2"
-V2 = PRESETS["default"].replace(place_rule="redirect", redirect_tol_m=0.0, veto_reopen=True)
+V2 = PRESETS["default"].replace(place_rule="redirect", redirect_tol_m=0.0, veto_reopen=True, release_carry=False)
 # candidate 4, the third shipped default (v2 with the release veto in place of the redirection). Its
 # units first ran as "default, release_veto=0.02", were renamed "default" when it shipped and
 # "default v3" when candidate 5 replaced it.
 CANDIDATE_4 = "default v3"
-# candidate 5, the shipped default: candidate 4 whose gripper veto never opens a gripper that holds
+# candidate 5, the fourth shipped default: candidate 4 whose gripper veto never opens a gripper that holds
 # (veto_reopen=False). Designed after candidate 4 lost 7 of 250 pairs on the learned confirmation
 # block 5-9 (section 7b) and all 7 were traced to the veto opening a gripper that held the bowl: a
 # bowl held by its rim hangs 0.060 m below the hand, at veto_height_m, while the phase is still
-# grasp. Its units ran as "default, veto holds" and were renamed "default" when it shipped.
-CANDIDATE_5 = "default"
+# grasp. Its units ran as "default, veto holds", were renamed "default" when it shipped and
+# "default v4" when candidate 6 replaced it.
+CANDIDATE_5 = "default v4"
+# candidate 6: the shipped default with release_carry (the release veto stays in force while a carried
+# object is set down, holds the hand from rising, steers to half the tolerance). Designed from five
+# traced design-block episodes of the place-bias expert where the clean expert succeeds and the
+# release veto failed (docs/method.md); on those and six more such pairs it rescued 8 of 11
+# (the shipped default since; its units ran as "default, release_carry" and were renamed "default")
+CANDIDATE_6 = "default"
 
 # Each correction alone (the others' authority 0), phys mode.
 ALONE = {
@@ -112,8 +119,9 @@ COMPARED = {
     # the design block after candidate 3 still held the weak siblings in place (their release point
     # lies beyond 0.015 m): the place-bias experts succeed 70-75 % below 0.02 m of bias, 10-40 %
     # from 0.02 to 0.03 m and never beyond
-    CANDIDATE_4: PRESETS["default"].replace(veto_reopen=True),
-    CANDIDATE_5: PRESETS["default"],
+    CANDIDATE_4: PRESETS["default"].replace(veto_reopen=True, release_carry=False),
+    CANDIDATE_5: PRESETS["default"].replace(release_carry=False),
+    CANDIDATE_6: PRESETS["default"],
     "temporal": PhysVLAConfig(mode="temporal"),
     "paper (eq. 2, c=0.05)": PRESETS["paper"],
     "paper Alg. 1 (c=1)": PRESETS["paper_alg1"],
@@ -137,11 +145,12 @@ DIAGNOSIS = ("full veto + height", "place redirect", "full veto + height + reach
 # by one on the learned backbones, design block 0-4 (stage `learned`)
 LEARNED_ALONE = ("full veto + height + reach", "place redirect")
 LEARNED_SCREENED = ("act_single",)  # the backbone the default cost most: its rules one by one
-LEARNED_CANDIDATES = (CANDIDATE_3, CANDIDATE_4, CANDIDATE_5)
+LEARNED_CANDIDATES = (CANDIDATE_3, CANDIDATE_4, CANDIDATE_5, CANDIDATE_6)
 # on the learned confirmation block 5-9 (config -> backbones it ran on): candidate 3 on act_single
 # only (its design-block cost on the weak siblings had already ruled it out); candidates 4 and 5 and
 # baseline on every learned backbone (None)
-LEARNED_CONFIRM = {"baseline": None, CANDIDATE_3: ("act_single",), CANDIDATE_4: None, CANDIDATE_5: None}
+LEARNED_CONFIRM = {"baseline": None, CANDIDATE_3: ("act_single",), CANDIDATE_4: None, CANDIDATE_5: None,
+                   CANDIDATE_6: None}
 # candidate 3 on the design block (its baselines are the design stage's) and on a fifth block no
 # decision looked at: init states 20-24 for the experts, 5-9 for the learned backbones (their
 # demonstrations came from 10-39)
@@ -152,7 +161,11 @@ DESIGN5 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_5)}
 # candidate 5 on the experts' sixth block, init states 25-29, which no decision looked at
 CONFIRM5_SEEDS = range(25, 30)
 CONFIRM5 = DESIGN5
-LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4, CANDIDATE_5)
+DESIGN6 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_6)}
+# candidate 6 on the experts' seventh block, init states 30-34, which no decision looked at
+CONFIRM6_SEEDS = range(30, 35)
+CONFIRM6 = DESIGN6
+LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4, CANDIDATE_5, CANDIDATE_6)
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 # pairs in a complete LIBERO cell (10 tasks x 5 init states): the block sections show complete cells
@@ -234,7 +247,8 @@ def _plot(records, path) -> None:
     for ax, b in zip(axes, BACKBONES):
         for seeds, marker, label in ((DESIGN_SEEDS, "o", "design 0-4"), (CONFIRM_SEEDS, "s", "confirm 5-9"),
                                      (CONFIRM2_SEEDS, "^", "confirm 10-14"), (CONFIRM3_SEEDS, "D", "confirm 15-19"),
-                                     (CONFIRM4_SEEDS, "v", "confirm 20-24"), (CONFIRM5_SEEDS, "P", "confirm 25-29")):
+                                     (CONFIRM4_SEEDS, "v", "confirm 20-24"), (CONFIRM5_SEEDS, "P", "confirm 25-29"),
+                                     (CONFIRM6_SEEDS, "X", "confirm 30-34")):
             recs = [r for r in _block(records, seeds) if r["backbone"] == b]
             for j, c in enumerate(COMPARED):
                 sel = [r for r in recs if r["config"] == c]
@@ -378,10 +392,13 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                           "design block after the learned backbones showed the redirection's cost (section 7); no "
                           "decision looked at this block",
                           CONFIRM4_SEEDS),
-                         ("3e. Fifth confirmation block (init states 25-29, n = 50 per cell): the shipped default "
+                         ("3e. Fifth confirmation block (init states 25-29, n = 50 per cell): default v4 "
                           "(candidate 5: default v3 whose gripper veto never opens a gripper that holds), designed "
                           "after the learned confirmation block showed default v3's losses (section 7b); no decision "
-                          "looked at this block", CONFIRM5_SEEDS)):
+                          "looked at this block", CONFIRM5_SEEDS),
+                         ("3f. Sixth confirmation block (init states 30-34, n = 50 per cell): the shipped default "
+                          "(candidate 6: default v4 with release_carry), designed from traced design-block failures of the release "
+                          "veto; no decision looked at this block", CONFIRM6_SEEDS)):
         recs = _block(records, seeds)
         rows = [paired_row(f"{b} / {c}", p) for b in BACKBONES for c in COMPARED
                 if c != "baseline" and (p := paired(recs, c, b))["n"] >= FULL_CELL]

@@ -557,7 +557,7 @@ def learned_checkpoints(args) -> None:
 
 
 EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,"
-                   "lift,lowpass,design3,confirm4,design5,confirm5,learned,learned_confirm")
+                   "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,learned,learned_confirm")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 LEARNED = "act_single,act_single_weak,act_chunk,act_chunk_weak,diffusion_chunk"
 
@@ -588,7 +588,9 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
                                   ("design3", ef.DESIGN_SEEDS, ef.DESIGN3),
                                   ("confirm4", ef.CONFIRM4_SEEDS, ef.CONFIRM4),
                                   ("design5", ef.DESIGN_SEEDS, ef.DESIGN5),
-                                  ("confirm5", ef.CONFIRM5_SEEDS, ef.CONFIRM5)):
+                                  ("confirm5", ef.CONFIRM5_SEEDS, ef.CONFIRM5),
+                                  ("design6", ef.DESIGN_SEEDS, ef.DESIGN6),
+                                  ("confirm6", ef.CONFIRM6_SEEDS, ef.CONFIRM6)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
                       for b in experts for t in range(10) for s in seeds]

@@ -105,8 +105,9 @@ def efficacy_table() -> list[str]:
     if not recs:
         return []
     lines = []
-    for seeds, what in ((ef.CONFIRM5_SEEDS, "init states 25-29, the shipped default's confirmation block (no "
+    for seeds, what in ((ef.CONFIRM6_SEEDS, "init states 30-34, the shipped default's confirmation block (no "
                                             "decision looked at it)"),
+                        (ef.CONFIRM5_SEEDS, "init states 25-29, default v4's confirmation block"),
                         (ef.CONFIRM4_SEEDS, "init states 20-24, default v3's confirmation block"),
                         (ef.CONFIRM3_SEEDS, "init states 15-19, default v2's confirmation block"),
                         (ef.DESIGN_SEEDS, "init states 0-4, the design block")):

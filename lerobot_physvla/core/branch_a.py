@@ -27,7 +27,8 @@ from numba import njit
 
 from lerobot_physvla.core.corrections.approach_veto import approach_veto
 from lerobot_physvla.core.corrections.base import (
-    ACTIVE, D_OBJ_XY, D_TGT_XY, EEF, HIGH, HOLD, LIFT, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_RULE, TGT,
+    ACTIVE, CARRIED, CARRY_REACH_M, D_OBJ_XY, D_TGT_XY, EEF, HIGH, HOLD, LIFT, LOW, N_GEO, OBJ, PHASE_REF_OBJECT,
+    PLACE_RULE, RELEASE_CARRY, TGT,
 )
 from lerobot_physvla.core.corrections.grasp_guidance import grasp_guidance
 from lerobot_physvla.core.corrections.place_deceleration import place_deceleration
@@ -78,6 +79,19 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
             mem[HOLD] = 0.0
     for k in range(a_phys.shape[0]):
         a_phys[k] = min(max(a_phys[k], p[LOW]), p[HIGH])
+
+
+@njit(error_model="numpy")
+def carried_phase(ph, g, mem, commit):
+    """release_carry: an object carried to the place phase stays in place while it is at the hand
+    (within CARRY_REACH_M, 3-D), even when it is set down (its lift below h_lift would make eq. 3
+    say grasp); the memory ends when the object leaves the hand."""
+    dx, dy, dz = g[OBJ] - g[EEF], g[OBJ + 1] - g[EEF + 1], g[OBJ + 2] - g[EEF + 2]
+    at_hand = dx * dx + dy * dy + dz * dz < CARRY_REACH_M * CARRY_REACH_M
+    carried = at_hand and (ph == PLACE or mem[CARRIED] > 0.5)
+    if commit:
+        mem[CARRIED] = 1.0 if carried else 0.0
+    return PLACE if carried and ph == GRASP else ph
 
 
 @njit(error_model="numpy")
@@ -136,6 +150,8 @@ def _compile(key: int):
             g[D_OBJ_XY], g[D_TGT_XY], g[LIFT] = d_obj, d_tgt, lift
             geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3] = d_obj, d_tgt, lift, g[EEF + 2] - g[OBJ + 2]
             ph = phase_of(d_obj, d_tgt, lift, d_grasp, h_lift)  # eq. 3
+            if p[RELEASE_CARRY] > 0.5 and p[PLACE_RULE] > 1.5:
+                ph = carried_phase(ph, g, mem[i], commit)
             phase[i] = ph
             if temporal:
                 temporal_row(a_raw[i], a_phys[i], idx, g, p, mem[i], commit)

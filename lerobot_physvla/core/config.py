@@ -160,6 +160,11 @@ class PhysVLAConfig:
             object's centre further than this from the target's is held back.
         hold_steps: place_rule=release_veto holds a release back for at most this many control
             steps in a row, then lets the policy's command through.
+        release_carry: with place_rule=release_veto, (1) the phase stays place while the object
+            carried there is still at the hand (within 0.10 m), also once it is set down, (2) the
+            hand does not rise while a release is held back, (3) a hold steers to half of
+            redirect_tol_m before it lets the policy's open through (docs/method.md: the traced
+            failures of the release veto).
         phase_ref: what d_tgt_xy of eq. (3) measures from once the object is lifted: eef (paper)
             | object (the held object's centre; a rim grasp holds it centimetres off the hand).
         lowpass: off | adaptive: a low-pass on the executed position channels whose strength
@@ -197,6 +202,7 @@ class PhysVLAConfig:
     redirect_gain: float = 0.5
     redirect_tol_m: float = 0.0
     hold_steps: int = 40
+    release_carry: bool = False
     phase_ref: str = "eef"
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
@@ -306,10 +312,11 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # beyond the paper (docs/method.md): only corrections that are right from the state alone: the
     # gripper veto where no finger can reach the object (keeping an open gripper open, never opening
     # a closed one: it may hold the object), the release veto where the held object would land more
-    # than 2 cm off the target
+    # than 2 cm off the target (kept in force while a carried object is set down: release_carry)
     "default": PhysVLAConfig(
         mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
-        veto_reach_m=0.10, veto_reopen=False, place_rule="release_veto", redirect_tol_m=0.02, phase_ref="object",
+        veto_reach_m=0.10, veto_reopen=False, place_rule="release_veto", redirect_tol_m=0.02, release_carry=True,
+        phase_ref="object",
     ),
 }
 # on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the

@@ -196,3 +196,45 @@ def test_release_veto_on_fetch_closes_with_the_layouts_own_sign():
     geo[OBJ:OBJ + 3] = (0.12, 0.04, 0.95)
     out = run(release_veto, [0.0, 0.0, -0.2, 1.0], idx, geo, p, mem)  # Fetch: +1 = open
     assert out[3] == -1.0
+
+
+def test_release_carry_holds_the_hand_down_and_steers_to_half_the_tolerance():
+    """release_carry: while a release is held back the hand does not rise (the policy's retreat
+    would carry the object up and drop it), and a hold under way lets the open through only within
+    half of redirect_tol_m; without it, z is the policy's and the open goes through at the edge."""
+    from lerobot_physvla.core.corrections.base import HOLD, TGT
+    from lerobot_physvla.core.corrections.release_veto import release_veto
+
+    releasing = np.array([0.3, -0.4, 0.5, 0.1, 0.2, 0.3, -1.0])  # opening while moving up (+z)
+    for carry in (False, True):
+        idx, geo, p, mem = ctx(place_rule="release_veto", redirect_tol_m=0.02, release_carry=carry)
+        geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
+        geo[OBJ:OBJ + 3] = (0.12, 0.04, 0.95)  # 5 cm off: held back
+        out = run(release_veto, releasing, idx, geo, p, mem)
+        assert out[6] == 1.0 and out[2] == (0.0 if carry else 0.5)
+        down = releasing.copy()
+        down[2] = -0.5
+        assert run(release_veto, down, idx, geo, p, mem)[2] == -0.5  # lowering stays the policy's
+        geo[OBJ:OBJ + 3] = (0.12, 0.005, 0.95)  # 1.5 cm off: inside tol, outside tol / 2
+        out = run(release_veto, releasing, idx, geo, p, mem)
+        assert out[6] == (1.0 if carry else -1.0)
+        geo[OBJ:OBJ + 3] = (0.12, -0.001, 0.95)  # 0.9 cm off: inside tol / 2
+        assert run(release_veto, releasing, idx, geo, p, mem)[6] == -1.0 and mem[HOLD] == 0
+
+
+def test_release_carry_keeps_a_set_down_object_in_place_while_it_is_at_the_hand():
+    from lerobot_physvla.core.branch_a import carried_phase
+    from lerobot_physvla.core.corrections.base import CARRIED
+    from lerobot_physvla.core.phase import GRASP, PLACE, TRANSPORT
+
+    geo, mem = np.zeros(N_GEO), np.zeros(N_MEM)
+    geo[EEF:EEF + 3], geo[OBJ:OBJ + 3] = (0.1, 0.0, 1.0), (0.14, 0.0, 0.94)  # a rim grasp: 7 cm off the hand
+    assert carried_phase(GRASP, geo, mem, True) == GRASP  # never carried to place: eq. 3 as it is
+    assert carried_phase(TRANSPORT, geo, mem, True) == TRANSPORT and mem[CARRIED] == 0
+    assert carried_phase(PLACE, geo, mem, True) == PLACE and mem[CARRIED] == 1
+    assert carried_phase(GRASP, geo, mem, False) == PLACE  # set down at the hand: still placing
+    assert carried_phase(GRASP, geo, mem, True) == PLACE
+    geo[OBJ:OBJ + 3] = (0.1, 0.0, 0.85)  # 15 cm below the hand: let go
+    assert carried_phase(GRASP, geo, mem, True) == GRASP and mem[CARRIED] == 0
+    geo[OBJ:OBJ + 3] = (0.14, 0.0, 0.94)  # back at the hand: a new grasp, not a carried object
+    assert carried_phase(GRASP, geo, mem, True) == GRASP

@@ -33,13 +33,15 @@ N_GEO = 12
 # p
 (BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M, LIFT_BIAS_U, ALPHA_TRANSPORT, D_THRESH_M, METRES_PER_UNIT,
  GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL, PLACE_RULE, REDIRECT_GAIN, PHASE_REF_OBJECT, REDIRECT_TOL_M,
- HOLD_STEPS) = range(17)
-N_PARAMS = 17
+ HOLD_STEPS, RELEASE_CARRY) = range(18)
+N_PARAMS = 18
 # mem
 EMA = 0  # 3 entries: x, y, z, action units
 ACTIVE = 3  # 1.0 once the EMA holds a value (transport: the previous step was in transport)
 HOLD = 4  # place_rule=release_veto: control steps the release has been held back in a row
-N_MEM = 5
+CARRIED = 5  # release_carry: 1.0 while the object carried to the place phase is still at the hand
+N_MEM = 6
+CARRY_REACH_M = 0.10  # release_carry: the object counts as at the hand within this of it (3-D), m
 
 
 def channel_index(layout: ActionLayout) -> np.ndarray:
@@ -64,4 +66,5 @@ def params(cfg: PhysVLAConfig, layout: ActionLayout) -> np.ndarray:
     p[PHASE_REF_OBJECT] = cfg.phase_ref == "object"
     p[REDIRECT_TOL_M] = cfg.redirect_tol_m
     p[HOLD_STEPS] = cfg.hold_steps
+    p[RELEASE_CARRY] = cfg.release_carry
     return p

@@ -19,12 +19,11 @@ from lerobot_physvla.core.corrections.base import METRES_PER_UNIT, OBJ, REDIRECT
 
 
 @njit(cache=True, error_model="numpy")
-def steer(geo, p):
+def steer(geo, p, tol):
     """(k, ex, ey): the steering move is a_xy = k (ex, ey), with (ex, ey) = target - object (m) and
-    k = gain (1 - tol / n) / scale beyond tol (n = |(ex, ey)|), k = 0 within it."""
+    k = gain (1 - tol / n) / scale beyond tol (m; n = |(ex, ey)|), k = 0 within it."""
     ex, ey = geo[TGT] - geo[OBJ], geo[TGT + 1] - geo[OBJ + 1]
     n = (ex * ex + ey * ey) ** 0.5
-    tol = p[REDIRECT_TOL_M]
     k = p[REDIRECT_GAIN] * (1.0 - tol / n) / p[METRES_PER_UNIT] if n > tol else 0.0
     return k, ex, ey
 
@@ -33,7 +32,7 @@ def steer(geo, p):
 def place_redirect(a_raw, a_phys, idx, geo, p, mem, commit):
     """x, y channels <- k (target - object) beyond tol (`steer`); z, rotation and gripper, and x, y
     within tol: the policy's (a_phys starts as a_raw)."""
-    k, ex, ey = steer(geo, p)
+    k, ex, ey = steer(geo, p, p[REDIRECT_TOL_M])
     if k > 0.0:
         a_phys[idx[0]] = k * ex
         a_phys[idx[1]] = k * ey

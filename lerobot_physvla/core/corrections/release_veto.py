@@ -13,11 +13,18 @@ the release held back (gripper closed) and the object steered to within `tol`, w
 policy's own open command goes through. The vertical channel stays the policy's throughout. A
 hold lasts at most `hold_steps` control steps in a row (the target may be out of reach), after
 which the policy's command goes through as it is.
+
+With `release_carry` (traced failures: docs/method.md), three more: the phase stays place while
+the object carried there is still at the hand, even once it is set down (core/branch_a.py), so a
+release on the table is judged too; the hand does not rise while a release is held back (the
+policy, believing it has let go, retreats and would carry the object up and drop it); and a hold
+steers to half the tolerance before it lets the policy's open through (not to its edge).
 """
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import GRIPPER, GRIPPER_OPEN, HOLD, HOLD_STEPS
+from lerobot_physvla.core.corrections.base import (GRIPPER, GRIPPER_OPEN, HOLD, HOLD_STEPS, REDIRECT_TOL_M,
+                                                   RELEASE_CARRY, Z)
 from lerobot_physvla.core.corrections.place_redirect import steer
 
 
@@ -26,12 +33,18 @@ def release_veto(a_raw, a_phys, idx, geo, p, mem, commit):
     """Gripper held closed and x, y steered toward the target while the policy opens off target."""
     g = idx[GRIPPER]
     miss = False  # the policy opens with the object's centre beyond tol of the target's
+    carry = p[RELEASE_CARRY] > 0.5
     if g >= 0 and a_raw[g] * p[GRIPPER_OPEN] > 0.0:
-        k, ex, ey = steer(geo, p)
+        tol = p[REDIRECT_TOL_M]
+        if carry and mem[HOLD] > 0.0:
+            tol = 0.5 * tol  # a hold under way steers to half the tolerance
+        k, ex, ey = steer(geo, p, tol)
         miss = k > 0.0
         if miss and mem[HOLD] < p[HOLD_STEPS]:
             a_phys[g] = -p[GRIPPER_OPEN]
             a_phys[idx[0]] = k * ex
             a_phys[idx[1]] = k * ey
+            if carry and a_phys[idx[Z]] > 0.0:
+                a_phys[idx[Z]] = 0.0  # the hand does not rise while it holds the release back
     if commit:  # count held (or yielded) steps in a row; anything else starts over
         mem[HOLD] = min(mem[HOLD] + 1.0, p[HOLD_STEPS]) if miss else 0.0
