@@ -557,7 +557,7 @@ def learned_checkpoints(args) -> None:
 
 
 EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,"
-                   "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,learned,learned_confirm")
+                   "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,design7,confirm7,learned,learned_confirm")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 LEARNED = "act_single,act_single_weak,act_chunk,act_chunk_weak,diffusion_chunk"
 
@@ -590,13 +590,19 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
                                   ("design5", ef.DESIGN_SEEDS, ef.DESIGN5),
                                   ("confirm5", ef.CONFIRM5_SEEDS, ef.CONFIRM5),
                                   ("design6", ef.DESIGN_SEEDS, ef.DESIGN6),
-                                  ("confirm6", ef.CONFIRM6_SEEDS, ef.CONFIRM6)):
+                                  ("confirm6", ef.CONFIRM6_SEEDS, ef.CONFIRM6),
+                                  ("design7", ef.DESIGN_SEEDS, ef.DESIGN7),
+                                  ("confirm7", ef.CONFIRM7_SEEDS, ef.CONFIRM7)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
                       for b in experts for t in range(10) for s in seeds]
     lift_cfgs = {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}
-    if "lift" in stages:
-        for first in (ef.LIFT_DESIGN, ef.LIFT_CONFIRM):
+    lift_blocks = {"lift": (ef.LIFT_DESIGN, ef.LIFT_CONFIRM), "design7": (ef.LIFT_DESIGN,),
+                   "confirm7": (ef.LIFT_CONFIRM,)}
+    for stage in (s for s in lift_blocks if s in stages):
+        if stage in ("design7", "confirm7"):
+            lift_cfgs = ef.DESIGN7 if stage == "design7" else ef.CONFIRM7
+        for first in lift_blocks[stage]:
             for sg in (0.0, 0.40):
                 expert = {"action_noise": sg, "noise_stage": "grasp"}
                 units += [Unit(f"lift sigma={sg:.2f}", name, cfg.to_dict(), 0, first, 20, expert, scene="lift")

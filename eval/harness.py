@@ -247,7 +247,8 @@ def _check_stale(done: list[Unit], out: Path) -> None:
     def effective(d: dict) -> PhysVLAConfig:  # the low-pass's parameters matter only when it is on
         c = PhysVLAConfig.from_dict(d)
         return c if c.lowpass != "off" else c.replace(lowpass_alpha_max=0.0, lowpass_rough_lo=0.0,
-                                                      lowpass_rough_hi=1.0, lowpass_phases="")
+                                                      lowpass_rough_hi=1.0, lowpass_phases="",
+                                                      lowpass_space="action", lowpass_speed_hi=0.0)
 
     for u in done:
         path = out / "units" / f"{u.key}.json"

@@ -105,7 +105,9 @@ def efficacy_table() -> list[str]:
     if not recs:
         return []
     lines = []
-    for seeds, what in ((ef.CONFIRM6_SEEDS, "init states 30-34, the shipped default's confirmation block (no "
+    for seeds, what in ((ef.CONFIRM7_SEEDS, "init states 35-39, a second block no decision looked at for the "
+                                            "shipped default (and candidate 7's confirmation block)"),
+                        (ef.CONFIRM6_SEEDS, "init states 30-34, the shipped default's confirmation block (no "
                                             "decision looked at it)"),
                         (ef.CONFIRM5_SEEDS, "init states 25-29, default v4's confirmation block"),
                         (ef.CONFIRM4_SEEDS, "init states 20-24, default v3's confirmation block"),

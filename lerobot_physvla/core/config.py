@@ -22,6 +22,7 @@ CHUNK_MODES: tuple[str, ...] = ("all", "first")
 PLACE_RULES: tuple[str, ...] = ("decelerate", "redirect", "release_veto")
 PHASE_REFS: tuple[str, ...] = ("eef", "object")
 LOWPASS_RULES: tuple[str, ...] = ("off", "adaptive")
+LOWPASS_SPACES: tuple[str, ...] = ("action", "target")
 PHASE_NAMES: tuple[str, ...] = ("approach", "grasp", "transport", "place")
 
 
@@ -170,6 +171,12 @@ class PhysVLAConfig:
         lowpass: off | adaptive: a low-pass on the executed position channels whose strength
             follows the policy's own step-to-step roughness (0 for a smooth policy).
         lowpass_phases: the phases (comma-separated names) where the low-pass acts.
+        lowpass_space: action | target: what the low-pass filters on a delta layout: the emitted
+            increments (action) or the position they command, end effector + increment (target;
+            the state feeds back through the filter, so a closed-loop policy's correction is not
+            delayed into an oscillation). The same on absolute layouts.
+        lowpass_speed_hi: > 0: the low-pass fades out as the policy's intended speed (an EMA of its
+            raw increments over the position channels, action units per step) reaches this; 0: off.
         lowpass_alpha_max: the low-pass's strongest smoothing factor (EMA alpha) in [0, 1).
         lowpass_rough_lo, lowpass_rough_hi: roughness (action units: the estimated standard
             deviation of the policy's step-to-step noise, per channel) at which the low-pass starts
@@ -206,6 +213,8 @@ class PhysVLAConfig:
     phase_ref: str = "eef"
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
+    lowpass_space: str = "action"
+    lowpass_speed_hi: float = 0.0
     lowpass_alpha_max: float = 0.6
     lowpass_rough_lo: float = 0.05
     lowpass_rough_hi: float = 0.2
@@ -223,6 +232,7 @@ class PhysVLAConfig:
             ("place_rule", self.place_rule, PLACE_RULES),
             ("phase_ref", self.phase_ref, PHASE_REFS),
             ("lowpass", self.lowpass, LOWPASS_RULES),
+            ("lowpass_space", self.lowpass_space, LOWPASS_SPACES),
         ):
             if value not in allowed:
                 raise ValueError(f"physvla: unknown {name} {value!r}; choose one of {', '.join(allowed)}")
@@ -248,6 +258,8 @@ class PhysVLAConfig:
         unknown = [p for p in self.lowpass_phases.replace(" ", "").split(",") if p and p not in PHASE_NAMES]
         if unknown:
             raise ValueError(f"physvla: unknown lowpass phase(s) {unknown}; choose from {', '.join(PHASE_NAMES)}")
+        if not self.lowpass_speed_hi >= 0.0:
+            raise ValueError(f"physvla: lowpass_speed_hi must be >= 0, got {self.lowpass_speed_hi}")
         if not 0.0 <= self.lowpass_alpha_max < 1.0:
             raise ValueError(f"physvla: lowpass_alpha_max must lie in [0, 1), got {self.lowpass_alpha_max}")
         if not 0.0 <= self.lowpass_rough_lo < self.lowpass_rough_hi:

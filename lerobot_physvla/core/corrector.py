@@ -346,7 +346,8 @@ class Corrector:
             fp[FP_B:FP_CAPS] = self.branch_b.params
         fp[FP_CAPS:FP_VETO] = cfg.caps
         fp[FP_VETO:FP_LP] = cfg.veto_height_m, cfg.veto_reach_m
-        fp[FP_LP:N_FP] = cfg.lowpass_alpha_max, cfg.lowpass_rough_lo, cfg.lowpass_rough_hi
+        fp[FP_LP:N_FP] = (cfg.lowpass_alpha_max, cfg.lowpass_rough_lo, cfg.lowpass_rough_hi, lay.metres_per_unit,
+                          cfg.lowpass_space == "target", cfg.lowpass_speed_hi)
         return fp
 
     def _int_params(self, n: int) -> np.ndarray:
@@ -445,7 +446,8 @@ class Corrector:
                              fp[FP_VETO:FP_LP], geo, fp[FP_LOW], fp[FP_HIGH], self._last_out, self._has_last)
             if ip[IP_LOWPASS]:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
-                                 fp[FP_LP + 1], fp[FP_LP + 2], self._lp_mem, commit, dev)
+                                 fp[FP_LP + 1], fp[FP_LP + 2], self._lp_mem, commit, dev, flat, ip[IP_PHASE + 1],
+                                 self._absolute, fp[FP_LP + 3], fp[FP_LP + 4] != 0.0, fp[FP_LP + 5])
         lay = self.layout
         g = guard(out, a_raw, status, baseline, self._absolute, self._hold0, lay.low, lay.high, self._last_out,
                   self._has_last, commit)

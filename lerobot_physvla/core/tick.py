@@ -18,8 +18,8 @@ position channels, [15:17] Branch B flags (el_mode, weighting), [17] gripper cha
 phases where the low-pass acts (0/1 each).
 Float parameters `fp`: [0] delta_grasp (m), [1] h_lift (m), [2] cap c, [3] gripper open value,
 [4] low, [5] high (action units), [6:10] Branch B [metres_per_unit, damping, eps (N m), r0 (N m)],
-[10:14] the authority per phase, [14:16] gripper veto [height, reach] (m), [16:19] low-pass
-[alpha_max, lo, hi].
+[10:14] the authority per phase, [14:16] gripper veto [height, reach] (m), [16:22] low-pass
+[alpha_max, lo, hi, metres_per_unit, 1 = target space, speed_hi].
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ TICK_SOURCE_KEY = source_key(TICK_SOURCE_FILES)
  IP_LP_MASK, N_IP) = (0, 5, 11, 12, 15, 17, 18, 19, 20, 21, 22, 23, 27)
 # layout of the float parameters
 (FP_D_GRASP, FP_H_LIFT, FP_CAP, FP_GRIP_OPEN, FP_LOW, FP_HIGH, FP_B, FP_CAPS, FP_VETO, FP_LP, N_FP) = (
-    0, 1, 2, 3, 4, 5, 6, 10, 14, 16, 19)
+    0, 1, 2, 3, 4, 5, 6, 10, 14, 16, 22)
 # columns of the diagnostics buffer (B, N_DIAG + A): phase (-1 where passed through), status
 # (REASONS code), guard (GUARDS code), d_obj_xy, d_tgt_xy, lift (m), |r_EL| (N m), r_energy (W),
 # deviation max|a - a_raw| (action units), sum of Branch B weights, then the A weights
@@ -111,7 +111,8 @@ def _compile(key: int):
                              fp[FP_VETO:FP_LP], geo, fp[FP_LOW], fp[FP_HIGH], last, has_last)
             if ip[IP_LOWPASS] != 0:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
-                                 fp[FP_LP + 1], fp[FP_LP + 2], lp_mem, commit, dev)
+                                 fp[FP_LP + 1], fp[FP_LP + 2], lp_mem, commit, dev, flat, ip[IP_PHASE + 1], absolute,
+                                 fp[FP_LP + 3], fp[FP_LP + 4] != 0.0, fp[FP_LP + 5])
         g = guard(out, a_raw, status, baseline, absolute, hold0, fp[FP_LOW], fp[FP_HIGH], last, has_last, commit)
         return out, record_tick(diag, phase, status, g, geo, r, dev, w, commit)
 
