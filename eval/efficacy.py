@@ -76,6 +76,7 @@ CANDIDATE_5 = "default v4"
 # (the shipped default since; its units ran as "default, release_carry" and were renamed "default")
 CANDIDATE_6 = "default"
 CANDIDATE_7 = "default + target low-pass"
+CANDIDATE_8 = "default + target low-pass, rough 0.12-0.25"
 
 # Each correction alone (the others' authority 0), phys mode.
 ALONE = {
@@ -137,6 +138,14 @@ COMPARED = {
                                                               lowpass_alpha_max=0.6, lowpass_speed_hi=1.0),
     CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1": PRESETS["default"].replace(
         lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.8, lowpass_speed_hi=1.0),
+    # after candidate 7's confirmation (its cost fell on the clean expert and the weak ACTs): a
+    # roughness band that leaves a competent policy alone. Measured on the design block (init
+    # states 0-2 of tasks 0, 3, 7, uncorrected): the clean expert's roughness estimate on x, y is
+    # 0.019 at the median, 0.049 / 0.104 at the 75th / 90th percentile (stage switches), the jitter
+    # expert's 0.22 / 0.27 / 0.32 at the 25th / 50th / 75th. Design-block evidence only: every
+    # expert block but 40-49 (untouched) has been looked at
+    CANDIDATE_8: PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.6,
+                                            lowpass_rough_lo=0.12, lowpass_rough_hi=0.25),
     "temporal": PhysVLAConfig(mode="temporal"),
     "paper (eq. 2, c=0.05)": PRESETS["paper"],
     "paper Alg. 1 (c=1)": PRESETS["paper_alg1"],
@@ -160,7 +169,7 @@ DIAGNOSIS = ("full veto + height", "place redirect", "full veto + height + reach
 # by one on the learned backbones, design block 0-4 (stage `learned`)
 LEARNED_ALONE = ("full veto + height + reach", "place redirect")
 LEARNED_SCREENED = ("act_single",)  # the backbone the default cost most: its rules one by one
-LEARNED_CANDIDATES = (CANDIDATE_3, CANDIDATE_4, CANDIDATE_5, CANDIDATE_6, CANDIDATE_7)
+LEARNED_CANDIDATES = (CANDIDATE_3, CANDIDATE_4, CANDIDATE_5, CANDIDATE_6, CANDIDATE_7, CANDIDATE_8)
 # on the learned confirmation block 5-9 (config -> backbones it ran on): candidate 3 on act_single
 # only (its design-block cost on the weak siblings had already ruled it out); candidates 4 and 5 and
 # baseline on every learned backbone (None)
@@ -182,7 +191,7 @@ CONFIRM6_SEEDS = range(30, 35)
 CONFIRM6 = DESIGN6
 LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4, CANDIDATE_5, CANDIDATE_6)
 CANDIDATE_7_VARIANTS = (CANDIDATE_7, CANDIDATE_7 + ", alpha_max=0.8", CANDIDATE_7 + ", speed_hi=1",
-                        CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1")
+                        CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1", CANDIDATE_8)
 LIFT_REPORTED = (*LIFT_CONFIGS, *CANDIDATE_7_VARIANTS)  # rows of the Lift / Fetch sections
 # candidate 7's variants on the design seeds (LIBERO 0-4 and Lift / Fetch 7-26: stage design7)
 DESIGN7 = {name: COMPARED[name] for name in ("baseline", *CANDIDATE_7_VARIANTS)}
