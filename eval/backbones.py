@@ -26,15 +26,21 @@ BACKBONES: dict[str, dict] = {
 
 
 class ExpertBackbone:
-    """The scripted expert on one scene: `failure` = ExpertConfig fields of the failure modes."""
+    """The scripted expert on one scene: `failure` = ExpertConfig fields of the failure modes,
+    and optionally `draw_offset` (int, default 0): the episode on init state s draws its failures
+    (noise, aim error, place bias, premature close) from seed s + draw_offset. The LIBERO init
+    states are few (0-39 used, 40-49 untouched), so a fresh offset gives a block of failure draws
+    that no decision has looked at on init states that have been seen."""
 
     def __init__(self, scene, failure: dict):
         from lerobot_physvla.sim.experts import ExpertConfig, PickPlaceExpert
 
+        failure = dict(failure)
+        self.draw_offset = int(failure.pop("draw_offset", 0))
         self.expert = PickPlaceExpert(layout=scene.layout, cfg=ExpertConfig(**{**scene.expert, **failure}))
 
     def reset(self, seed: int) -> None:
-        self.expert.reset(seed=seed)
+        self.expert.reset(seed=seed + self.draw_offset)
 
     def act(self, scene, state) -> np.ndarray:
         return self.expert.act(state.eef_pos[0], state.obj_pos[0], state.target_pos[0])

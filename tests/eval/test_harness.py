@@ -95,3 +95,23 @@ def test_a_unit_on_disk_run_with_other_weights_is_not_reused(tmp_path):
     (ckpt / "model.safetensors").write_bytes(b"weights v2")  # retrained
     with pytest.raises(SystemExit, match="other weights"):
         _check_stale([unit], tmp_path)
+
+
+def test_a_draw_offset_gives_fresh_failure_draws_on_the_same_init_states():
+    from types import SimpleNamespace
+
+    from backbones import ExpertBackbone
+
+    from lerobot_physvla.core.config import LIBERO_OSC_POSE
+
+    scene = SimpleNamespace(layout=LIBERO_OSC_POSE, expert={})
+    failure = {"aim_noise_m": 0.015, "place_bias_m": 0.05}
+
+    def draws(failure: dict, seed: int) -> tuple:
+        bb = ExpertBackbone(scene, failure)
+        bb.reset(seed)
+        return tuple(bb.expert.aim) + tuple(bb.expert.place_bias)
+
+    assert draws(failure, 3) == draws({**failure, "draw_offset": 0}, 3)  # the default: today's draws
+    assert draws({**failure, "draw_offset": 1000}, 3) == draws(failure, 1003)
+    assert draws({**failure, "draw_offset": 1000}, 3) != draws(failure, 3)
