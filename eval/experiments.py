@@ -596,13 +596,12 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
                       for b in experts for t in range(10) for s in seeds]
-    lift_cfgs = {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}
-    lift_blocks = {"lift": (ef.LIFT_DESIGN, ef.LIFT_CONFIRM), "design7": (ef.LIFT_DESIGN,),
-                   "confirm7": (ef.LIFT_CONFIRM,)}
-    for stage in (s for s in lift_blocks if s in stages):
-        if stage in ("design7", "confirm7"):
-            lift_cfgs = ef.DESIGN7 if stage == "design7" else ef.CONFIRM7
-        for first in lift_blocks[stage]:
+    lift_stages = {"lift": ((ef.LIFT_DESIGN, ef.LIFT_CONFIRM), {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}),
+                   "design7": ((ef.LIFT_DESIGN,), ef.DESIGN7), "confirm7": ((ef.LIFT_CONFIRM,), ef.CONFIRM7)}
+    for stage, (blocks, lift_cfgs) in lift_stages.items():
+        if stage not in stages:
+            continue
+        for first in blocks:
             for sg in (0.0, 0.40):
                 expert = {"action_noise": sg, "noise_stage": "grasp"}
                 units += [Unit(f"lift sigma={sg:.2f}", name, cfg.to_dict(), 0, first, 20, expert, scene="lift")

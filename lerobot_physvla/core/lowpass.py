@@ -15,10 +15,10 @@ alpha_max.
 
 What is filtered (lowpass_space): `action` filters the emitted values as they are, increments on a
 delta layout. Inside a closed loop (a policy that corrects toward a goal from the state it sees)
-an EMA on the increments delays the correction itself: the scripted expert's grasp approach
-(gain 0.6 per step) under alpha 0.6 becomes a lightly damped oscillation that stalls short of
-the grasp point (docs/method.md, "The low-pass in target space"). `target` filters the position
-the increment commands instead, in action units,
+an EMA on the increments delays the correction itself: under alpha 0.6 the jitter expert's hand
+reached its grasp late and the gripper closed 1.7 cm from where the unfiltered run closed it
+(docs/method.md, `lowpass_space`). `target` filters the position the increment commands instead,
+in action units,
 
     p_t = x_t / metres_per_unit + a_t        (x_t: the end effector, m; a_t: the increment)
     y_t = alpha_t y_{t-1} + (1 - alpha_t) p_t,      emitted a'_t = y_t - x_t / metres_per_unit
@@ -28,15 +28,14 @@ target is averaged (for a goal-seeking policy the loop stays first order). On ab
 action is already a target and both are the same. The price: a move at constant commanded speed
 v is executed at (1 - alpha) v (the filtered target trails the hand), which cost Fetch's 50-step
 episodes their place phase. So with lowpass_speed_hi > 0 the smoothing fades with the policy's
-intended speed,
+intended speed, in the spirit of the One-Euro filter (cutoff rising with speed):
 
-    m_t     = 0.8 m_{t-1} + 0.2 inc_t        (inc_t: the raw increment, action units; noise averages out)
-    alpha_t = alpha_t (1 - clip(|m_t| / speed_hi, 0, 1))      (|m_t| over the position channels)
+    m_t      = 0.8 m_{t-1} + 0.2 inc_t      (inc_t: the raw increment, action units; noise averages out)
+    alpha'_t = alpha_t (1 - clip(|m_t| / speed_hi, 0, 1))      (|m_t| over the position channels)
 
-in the spirit of the One-Euro filter (cutoff rising with speed): full smoothing while the policy
-positions the hand slowly, none while it moves fast. It acts in the phases of `lowpass_phases`; elsewhere y follows a_t (no lag carried
-into a phase). Memory per env (B, N_LP_MEM): y (3), r (3), previous raw action (3), a flag that
-the memory holds a value. The gripper and rotation channels are never filtered.
+It acts in the phases of `lowpass_phases`; elsewhere y follows a_t (no lag carried into a phase).
+Memory per env (B, N_LP_MEM): y (3), r (3), previous raw action (3), a flag that the memory holds
+a value, m (3). The gripper and rotation channels are never filtered.
 """
 
 from __future__ import annotations
@@ -70,16 +69,16 @@ def adaptive_lowpass(out, a_raw, phase, status, pos, mask, alpha_max, lo, hi, me
         active = mem[i, LP_ACTIVE] > 0.5
         acts = mask[phase[i]] != 0
         # the policy's intended speed: an EMA of its raw increments, where zero-mean noise averages out
-        speed2 = 0.0
-        for k in range(3):
-            c = pos[k]
-            inc = a_raw[i, c] if not absolute[c] else (a_raw[i, c] - mem[i, LP_PREV + k] if active else 0.0)
-            m = SPEED_DECAY * mem[i, LP_SPEED + k] + (1.0 - SPEED_DECAY) * inc if active else inc
-            if commit:
-                mem[i, LP_SPEED + k] = m
-            speed2 += m * m
         slow = 1.0
         if speed_hi > 0.0:
+            speed2 = 0.0
+            for k in range(3):
+                c = pos[k]
+                inc = a_raw[i, c] if not absolute[c] else (a_raw[i, c] - mem[i, LP_PREV + k] if active else 0.0)
+                m = SPEED_DECAY * mem[i, LP_SPEED + k] + (1.0 - SPEED_DECAY) * inc if active else inc
+                if commit:
+                    mem[i, LP_SPEED + k] = m
+                speed2 += m * m
             slow = max(1.0 - math.sqrt(speed2) / speed_hi, 0.0)
         for k in range(3):
             c = pos[k]
