@@ -208,6 +208,13 @@ CONFIRM7_SEEDS = range(35, 40)
 # The shipped default (candidate 6) runs there too: a second block no decision looked at for it,
 # and the reference that tells the low-pass's own cost from the default's.
 CONFIRM7 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_6, CANDIDATE_7)}
+# The paper's capped blend (phys, c = 0.05) helped every chunked ACT on the design block 0-4 where
+# the shipped default moved none (eval/results/learned: act_chunk +6, act_chunk_weak +10, act_chunk_mid
+# 6 -> 18 of 20 on its first four tasks while it ran): its four phases one at a time, same cap, on
+# the chunked ACTs (stage `learned_phys`), to find which correction does it
+PHYS_PHASES = {f"phys c=0.05, {ph} only": PhysVLAConfig(mode="phys", phase_caps=tuple(0.05 * (i == k) for i in range(4)))
+               for k, ph in enumerate(("approach", "grasp", "transport", "place"))}
+LEARNED_PHYS_SCREENED = ("act_chunk", "act_chunk_weak", "act_chunk_mid")
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 # pairs in a complete LIBERO cell (10 tasks x 5 init states): the block sections show complete cells
@@ -482,13 +489,15 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                     k = [f"{sum(r['success'] for r in cell)}/{len(cell)}" for cell in cells]
                     lines.append(f"| {sim} | {c} | {k[0]} | {k[1]} | {j[0]:.2f} | {j[1]:.2f} | {(j[1] - j[0]) / j[0]:+.0%} |")
     for title, seeds in (("7. Learned backbones: default v2, its rules one by one, candidate 3 (redirection with "
-                          "a 0.015 m tolerance), default v3 (candidate 4: the release veto) and the shipped default "
-                          "(candidate 5: v3's veto never opening a closed gripper) (design block, init states 0-4, "
-                          "n = 50 per cell)", DESIGN_SEEDS),
+                          "a 0.015 m tolerance), default v3 (candidate 4: the release veto), default v4 (candidate 5: v3's "
+                          "veto never opening a closed gripper), the shipped default (candidate 6) and candidates 7 "
+                          "and 8 (the target-space low-pass) (design block, init states 0-4, n = 50 per cell; the "
+                          "`_mid` siblings, added after every corrector decision, ran baseline and the shipped "
+                          "default only)", DESIGN_SEEDS),
                          ("7b. Learned backbones, confirmation block (init states 5-9, n = 50 per cell; no corrector "
-                          "decision looked at it before candidates 3 and 4 ran there. Candidate 5, the shipped "
-                          "default, was designed from candidate 4's losses on this block: its row here is a "
-                          "diagnosis, not a confirmation; the learned backbones have no other block to confirm on, "
+                          "decision looked at it before candidates 3 and 4 ran there. Candidate 5 (default v4) was "
+                          "designed from candidate 4's losses on this block, and the shipped default (candidate 6) "
+                          "from v4: their rows here are a diagnosis, not a confirmation; the learned backbones have no other block to confirm on, "
                           "their demonstrations came from 10-39 and 40-49 stay untouched)",
                           CONFIRM_SEEDS)):
         recs = [r for r in learned if r["seed"] in seeds]

@@ -411,7 +411,8 @@ def learned(args) -> None:
     if unknown:
         raise SystemExit(f"experiments: unknown preset(s) {unknown}; choose from {', '.join(PRESETS)}")
     configs = {**{m: PhysVLAConfig(mode=m) for m in modes}, **{p: PRESETS[p] for p in presets}}
-    modes_of = {n: [*(weak_modes if n in train_backbones.SIBLINGS else modes), *presets] for n in names}
+    weak = {*train_backbones.SIBLINGS, *train_backbones.CONTINUED}
+    modes_of = {n: [*(weak_modes if n in weak else modes), *presets] for n in names}
     units = [
         Unit(n, m, configs[m].to_dict(), t, s, k, policy=str(ckpts[n].resolve()))
         for n in names for m in modes_of[n] for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
@@ -430,7 +431,8 @@ def learned(args) -> None:
         if recipe.exists():
             r = json.loads(recipe.read_text())
             ds = r.get("dataset", {})
-            provenance.append(f"| {n} | {r['recipe']} | {r.get('checkpoint', 'last')} of {r.get('steps', '?')} | "
+            cont = f" (continues {Path(r['continues']['checkpoint']).name})" if "continues" in r else ""
+            provenance.append(f"| {n} | {r['recipe']}{cont} | {r.get('checkpoint', 'last')} of {r.get('steps', '?')} | "
                               f"{r.get('device', 'CPU')} | {r['train_seconds'] / 60:.1f} | "
                               f"{ds.get('episodes', '?')} episodes, {ds.get('frames', '?')} frames | "
                               f"`{str(r.get('commit', '?'))[:7]}` |")
@@ -442,7 +444,9 @@ def learned(args) -> None:
                    len(units), about=(
                        "Backbones: LeRobot policies trained with lerobot-train by policies/train_backbones.py (each "
                        "one's command, seed, device and training time: recipes/<name>.json; `_weak` = an earlier "
-                       "checkpoint of the same run) on scripted-expert demonstrations (clean expert labels, DART "
+                       "checkpoint of the same run; `_mid` = a `_weak` checkpoint trained further on this CPU, the "
+                       "weak sibling in the 30-50 % band, chosen on init states 5-9 in eval/results/learned_mid) on "
+                       "scripted-expert demonstrations (clean expert labels, DART "
                        "noise 0.1 and 0.3 on the executed x, y actions, successful episodes only) from init states "
                        "10-39 (policies/record_dataset.py); evaluated on init states 0 .. per-task - 1, which no "
                        "training or checkpoint choice used. Success is LIBERO's own check; rates with 95 % Wilson "
@@ -556,10 +560,61 @@ def learned_checkpoints(args) -> None:
     write(out, lines, records)
 
 
+def learned_mid(args) -> None:
+    """The `_mid` weak siblings (policies/train_backbones.py CONTINUED, CPU_DRAW): every candidate
+    checkpoint, uncorrected, on init states 5-9 (which the learned table does not use), and the one
+    the rule written before this ran keeps: success closest to 40 %, ties to the earlier step."""
+    tb = _train_backbones()
+    first, out = args.first_seed, RESULTS / "learned_mid"
+    cands: dict[str, tuple[str, Path]] = {}
+    for name in args.learned.split(","):
+        if name not in tb.CONTINUED:
+            raise SystemExit(f"experiments: {name!r} is no `_mid` sibling; choose from {', '.join(tb.CONTINUED)}")
+        found = tb.mid_candidates(name, args.checkpoints)
+        if not found:
+            raise SystemExit(f"experiments: no candidate checkpoint of {name} under {args.checkpoints}; run "
+                             f"policies/train_backbones.py {name}")
+        cands |= {k: (name, p) for k, p in found.items()}
+    units = [Unit(n, "baseline", PhysVLAConfig(mode="baseline").to_dict(), t, first, args.per_task,
+                  policy=str(c.resolve())) for n, (_, c) in cands.items() for t in range(10)]
+    records, secs = run_units(units, out, args.workers, args.backend)
+    agg = aggregate(records)
+    rows, chosen = [], {}
+    for name in dict.fromkeys(v[0] for v in cands.values()):
+        mine = {n: c for n, (m, c) in cands.items() if m == name}
+        chosen[name] = tb.choose_mid({n: agg[(n, "baseline")]["success"] for n in mine})
+        for n, c in mine.items():
+            a = agg[(n, "baseline")]
+            r = json.loads((c / "recipe.json").read_text()) if (c / "recipe.json").exists() else {}
+            how = (f"continues {Path(r['continues']['checkpoint']).name} (GPU)" if "continues" in r
+                   else f"{r.get('recipe', '?')} run whole")
+            rows.append(f"| {name} | `{n}` | {how} | {int(n.rsplit('@', 1)[1])} of {r.get('steps', '?')} | "
+                        f"{a['successes']} / {a['n']} | {100 * a['success']:.0f}% [{100 * a['ci'][0]:.0f}, "
+                        f"{100 * a['ci'][1]:.0f}] | {a['mean_jerk']:.1f} | {r.get('device', '?')}, "
+                        f"{r.get('train_seconds', 0) / 60:.1f} min | `{harness.policy_fingerprint(c)[:8]}` | "
+                        f"{'kept' if n == chosen[name] else ''} |")
+    lines = header(f"Weak siblings in the 30-50 % band: candidate checkpoints, uncorrected, on init states {first}-"
+                   f"{first + args.per_task - 1}", secs, len(units), about=(
+                       "Candidates of each `_mid` sibling (policies/train_backbones.py CONTINUED, CPU_DRAW): its "
+                       "committed GPU first checkpoint trained further on this CPU (lerobot-train --policy.path=<it>, "
+                       "a fresh AdamW at the recipe's learning rate, batch 32, seed 1000), every saved step; and, for "
+                       "act_single, the recipe run whole on this CPU (another draw of the same recipe, data and seed). "
+                       f"Each ran uncorrected on init states {first}-{first + args.per_task - 1} of the 10 tasks (n = "
+                       f"{10 * args.per_task}); the learned table reports the kept one on init states 0-4. Rule, "
+                       "written before any of them ran: keep the candidate whose success here lies closest to 40 %, "
+                       "ties to the earlier step."))
+    lines += ["| sibling | candidate | how | step of its run | successes | success [95 % Wilson] | mean jerk (m/s^3) | "
+              "trained on, minutes (whole run) | weights (sha256) | |", "|---|---|---|---|---|---|---|---|---|---|",
+              *rows, "", "Kept (policies/train_backbones.py MID_CHOICE names these): " +
+              ", ".join(f"{n}: `{c}`" for n, c in chosen.items())]
+    write(out, lines, records)
+
+
 EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,"
-                   "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,design7,confirm7,learned,learned_confirm")
+                   "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,design7,confirm7,learned,learned_confirm,"
+                   "learned_phys")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
-LEARNED = "act_single,act_single_weak,act_chunk,act_chunk_weak,diffusion_chunk"
+LEARNED = "act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,diffusion_chunk"
 
 
 def _efficacy_units(stages: list[str], experts: list[str]) -> list:
@@ -626,7 +681,7 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
 
 
 def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) -> list:
-    """The learned backbones' units of the efficacy stages `learned` and `learned_confirm`."""
+    """The learned backbones' units of the efficacy stages `learned`, `learned_phys` and `learned_confirm`."""
     import efficacy as ef
 
     blocks = []
@@ -637,6 +692,8 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
                                                 **{k: ef.COMPARED[k] for k in ef.LEARNED_CANDIDATES}}))
         blocks.append((ef.DESIGN_SEEDS, [n for n in names if n in ef.LEARNED_SCREENED],
                        {k: ef.ALONE[k] for k in ef.LEARNED_ALONE}))
+    if "learned_phys" in stages:  # the paper's capped blend one phase at a time, chunked ACTs, block 0-4
+        blocks.append((ef.DESIGN_SEEDS, [n for n in names if n in ef.LEARNED_PHYS_SCREENED], ef.PHYS_PHASES))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
@@ -669,7 +726,7 @@ def efficacy(args) -> None:
     _, secs = run_units(_efficacy_units(stages, experts), out, args.workers, args.backend)
     learned_secs = 0.0
     names = args.learned.split(",")
-    if ("learned" in stages or "learned_confirm" in stages) and not args.learned_on_disk:
+    if {"learned", "learned_confirm", "learned_phys"} & set(stages) and not args.learned_on_disk:
         ckpts = _checkpoints(names, args.checkpoints, "run policies/record_dataset.py then policies/train_backbones.py")
         _, learned_secs = run_units(_learned_units(stages, names, ckpts), RESULTS / "learned", args.workers,
                                     args.backend)
@@ -709,7 +766,8 @@ def main() -> None:
                                        "act_chunk@2400,act_chunk_cpu@2400,act_chunk_cpu@3600,act_chunk_cpu@4800,"
                                        "act_chunk_cpu@6000,act_single@20000,act_single_cpufull@20000",
                     help="learned_checkpoints: <run>@<step> entries (<recipe>_cpu / _cpufull: its runs on this CPU, CPU_RUNS)")
-    ap.add_argument("--first-seed", type=int, default=5, help="learned_checkpoints: first init state of the block")
+    ap.add_argument("--first-seed", type=int, default=5,
+                    help="learned_checkpoints, learned_mid: first init state of the block")
     ap.add_argument("--weak-modes", default=None, help="learned: modes for the weak siblings (default: --modes)")
     ap.add_argument("--presets", default="default",
                     help="learned: presets run beside the modes (core.config.PRESETS; '' for none)")
@@ -725,7 +783,7 @@ def main() -> None:
 
 EXPERIMENTS = {"table2": table2, "ablation": ablation, "place_bias": place_bias, "lift_sweep": lift_sweep,
                "lift_plate": lift_plate, "fetch_sweep": fetch_sweep, "learned": learned,
-               "learned_fixes": learned_fixes, "learned_checkpoints": learned_checkpoints, "efficacy": efficacy}
+               "learned_fixes": learned_fixes, "learned_checkpoints": learned_checkpoints, "learned_mid": learned_mid, "efficacy": efficacy}
 
 if __name__ == "__main__":
     main()

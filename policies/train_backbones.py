@@ -25,7 +25,13 @@ the final one), which eval/experiments.py learned uses (or
     diffusion_chunk   Diffusion, executes 8 of its 16-step horizon before re-planning
 
 Weak siblings (`SIBLINGS`) are earlier checkpoints of the same runs: the same recipe stopped
-early, so the corrector is judged on a weak and a strong policy of one family.
+early, so the corrector is judged on a weak and a strong policy of one family. Those landed below
+the 30-50 % band #9 asks for; the `_mid` siblings (`CONTINUED`, `CPU_DRAW`, `MID_CHOICE`) are in it:
+
+    .venv/bin/python policies/train_backbones.py act_chunk_mid      # continues act_chunk_weak here
+    .venv/bin/python policies/train_backbones.py act_single_mid     # continues act_single_weak here
+    .venv/bin/python policies/train_backbones.py act_single --out outputs/train/cpu_full
+    .venv/bin/python eval/experiments.py learned_mid --learned act_single_mid,act_chunk_mid
 
 Normalisation: lerobot 0.6.1's ACT and Diffusion configs normalise only the VISUAL, STATE and
 ACTION feature types; `observation.environment_state` (type ENV: object and target xyz, metres)
@@ -85,6 +91,52 @@ SIBLINGS: dict[str, tuple[str, int]] = {
 }
 
 
+# Weak siblings in the 30-50 % band (#9). The GPU runs' first checkpoints landed below it (act_single
+# @4000: 28 %, act_chunk @2400: 22 % on init states 0-4) and their later intermediate checkpoints
+# were not kept. The candidates for each `_mid` sibling, fixed before any of them was evaluated:
+# - CONTINUED: the committed first checkpoint trained further on this CPU, `lerobot-train
+#   --policy.path=<checkpoint>` (its weights, config and normalisation, a fresh AdamW at the recipe's
+#   constant learning rate, batch 32, seed 1000) for `steps` more steps, saving every `every`;
+# - CPU_DRAW: the recipe run whole on this CPU (`train_backbones.py <recipe> --out
+#   outputs/train/cpu_full`): the same recipe, data and seed, another draw (the GPU's numerics are
+#   not this CPU's; eval/results/learned_checkpoints), its final checkpoint.
+# The one kept is the candidate whose uncorrected success on init states 5-9 (eval/experiments.py
+# learned_mid) lies closest to 40 %, ties to the earlier; the learned table reports it on 0-4.
+# name -> (committed checkpoint it continues, steps, save every)
+CONTINUED: dict[str, tuple[str, int, int]] = {
+    "act_single_mid": ("act_single_weak", 4000, 1000),
+    "act_chunk_mid": ("act_chunk_weak", 3600, 1200),
+}
+CPU_DRAW: dict[str, str] = {"act_single_mid": "act_single"}  # name -> recipe run whole on this CPU
+CPU_DRAW_DIR = "cpu_full"  # where, under the training root, the whole CPU runs are
+# name -> the kept candidate: (its run's directory under the training root, step), as
+# eval/results/learned_mid chose it (a test recomputes the choice from that file's units)
+MID_CHOICE: dict[str, tuple[str, int]] = {"act_single_mid": (f"{CPU_DRAW_DIR}/act_single", 20000),
+                                          "act_chunk_mid": ("act_chunk_mid", 1200)}
+
+
+def mid_candidates(name: str, out_root: str = "outputs/train") -> dict[str, Path]:
+    """A `_mid` sibling's candidate checkpoints on disk: `<name>@<step>` for its continued run,
+    `<recipe>_cpufull@<step>` for the final checkpoint of its recipe's whole run on this CPU."""
+    found = {}
+    for p in sorted((Path(out_root) / name / "checkpoints").glob("[0-9]*/pretrained_model")):
+        found[f"{name}@{p.parent.name}"] = p
+    if name in CPU_DRAW:
+        recipe = CPU_DRAW[name]
+        p = Path(out_root) / CPU_DRAW_DIR / recipe / "checkpoints" / f"{RECIPES[recipe][1]:06d}" / "pretrained_model"
+        found[f"{recipe}_cpufull@{p.parent.name}"] = p
+    return {k: p for k, p in found.items() if (p / "model.safetensors").exists()}
+
+
+def choose_mid(success: dict[str, float], target: float = 0.40) -> str:
+    """The rule that keeps a `_mid` sibling: of the candidates (`<run>@<step>` -> success, a fraction),
+    the one closest to `target`; ties to the earlier step, then to the continued run (listed first)."""
+    if not success:
+        raise ValueError("choose_mid: no checkpoint evaluated")
+    order = {k: i for i, k in enumerate(success)}
+    return min(success, key=lambda k: (round(abs(success[k] - target), 9), int(k.rsplit("@", 1)[1]), order[k]))
+
+
 RAW_ENV = "_rawenv"  # suffix of the ablation that reproduces the normalisation defect (ENV left raw)
 
 
@@ -107,11 +159,29 @@ def command(name: str, dataset: str, out_root: str, steps: int | None = None, de
             f"--job_name=physvla_{name}"]
 
 
+def continued_command(name: str, dataset: str, out_root: str, steps: int | None = None, device: str = "cpu",
+                      num_workers: int = 0) -> list[str]:
+    """The lerobot-train argv that continues a committed checkpoint (CONTINUED): its policy config,
+    weights and normalisation come from --policy.path; only the run's own settings are named."""
+    base, n, every = CONTINUED[name]
+    n = n if steps is None else steps
+    exe = Path(sys.executable).with_name("lerobot-train")
+    head = [str(exe)] if exe.exists() else [sys.executable, "-m", "lerobot.scripts.lerobot_train"]
+    return [*head, f"--policy.path={COMMITTED / base}", f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset}",
+            f"--policy.device={device}", f"--num_workers={num_workers}", *_COMMON, "--batch_size=32", f"--steps={n}",
+            f"--save_freq={min(every, n)}", f"--output_dir={out_root}/{name}", f"--job_name=physvla_{name}"]
+
+
 def checkpoint(name: str, out_root: str = "outputs/train") -> Path:
     """The pretrained_model directory of a recipe's final checkpoint, or of a weak sibling's."""
     if name in SIBLINGS:
         recipe, step = SIBLINGS[name]
         return Path(out_root) / recipe / "checkpoints" / f"{step:06d}" / "pretrained_model"
+    if name in MID_CHOICE:
+        run, step = MID_CHOICE[name]
+        return Path(out_root) / run / "checkpoints" / f"{step:06d}" / "pretrained_model"
+    if name in CONTINUED:  # not chosen yet: the continued run's last checkpoint
+        return Path(out_root) / name / "checkpoints" / "last" / "pretrained_model"
     return Path(out_root) / name / "checkpoints" / "last" / "pretrained_model"
 
 
@@ -150,7 +220,10 @@ def train(name: str, dataset: str, out_root: str, steps: int | None = None, devi
           num_workers: int = 0, raw_env: bool = False) -> Path:
     if not (Path(dataset) / "meta" / "info.json").exists():
         raise SystemExit(f"train_backbones: no dataset at {dataset}; run policies/record_dataset.py first")
-    cmd = command(name, dataset, out_root, steps, device, num_workers, raw_env)
+    if name in CONTINUED:
+        cmd = continued_command(name, dataset, out_root, steps, device, num_workers)
+    else:
+        cmd = command(name, dataset, out_root, steps, device, num_workers, raw_env)
     name = name + RAW_ENV if raw_env else name
     out = Path(out_root) / name
     if out.exists():  # lerobot-train refuses an existing output dir without --resume
@@ -168,6 +241,12 @@ def train(name: str, dataset: str, out_root: str, steps: int | None = None, devi
               "steps": int(next(a for a in cmd if a.startswith("--steps=")).split("=")[1]), "seed": SEED,
               "commit": _commit(), "dataset": {"root": dataset, "episodes": info.get("total_episodes"),
                                                "frames": info.get("total_frames")}}
+    if name in CONTINUED:  # the run it continues, by the weights it started from
+        import hashlib
+
+        base = COMMITTED / CONTINUED[name][0]
+        recipe["continues"] = {"checkpoint": str(base.relative_to(COMMITTED.parent.parent)),
+                               "model_sha256": hashlib.sha256((base / "model.safetensors").read_bytes()).hexdigest()}
     for ckpt in sorted((out / "checkpoints").glob("*/pretrained_model")):  # every checkpoint knows its recipe
         (ckpt / "recipe.json").write_text(json.dumps({**recipe, "checkpoint": ckpt.parent.name}, indent=1))
     print(f"{name}: trained in {secs / 60:.1f} min on {recipe['device']} -> {checkpoint(name, out_root)}")
@@ -176,7 +255,8 @@ def train(name: str, dataset: str, out_root: str, steps: int | None = None, devi
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("recipe", nargs="?", choices=[*RECIPES, "all"], default="all")
+    ap.add_argument("recipe", nargs="?", choices=[*RECIPES, *CONTINUED, "all"], default="all",
+                    help="a recipe, a `_mid` sibling that continues a committed checkpoint, or all recipes")
     ap.add_argument("--dataset", default=DATASET)
     ap.add_argument("--out", default="outputs/train")
     ap.add_argument("--steps", type=int, default=None, help="override the recipe's step count (smoke tests)")
@@ -193,8 +273,10 @@ def main() -> None:
     names = list(RECIPES) if args.recipe == "all" else [args.recipe]
     if args.list:
         for n in names:
-            print(n + ":\n  " + shlex.join(command(n, args.dataset, args.out, None, args.device, args.num_workers,
-                                                    args.raw_env)))
+            cmd = (continued_command(n, args.dataset, args.out, None, args.device, args.num_workers)
+                   if n in CONTINUED else command(n, args.dataset, args.out, None, args.device, args.num_workers,
+                                                  args.raw_env))
+            print(n + ":\n  " + shlex.join(cmd))
         return
     with ThreadPoolExecutor(max_workers=max(1, args.parallel)) as pool:  # each recipe is its own process
         for f in [pool.submit(train, n, args.dataset, args.out, args.steps, args.device, args.num_workers,

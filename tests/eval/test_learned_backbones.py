@@ -63,6 +63,23 @@ def test_record_train_and_run_a_learned_backbone(tmp_path):
     same = train_backbones.checkpoint("act_chunk", str(tmp_path / "train0")) / "model.safetensors"
     assert same.read_bytes() == (ckpt / "model.safetensors").read_bytes()
 
+    # a `_mid` sibling continues a committed checkpoint: lerobot-train takes its config and weights
+    # (--policy.path) with only the run's own settings named, and the recipe names what it continued
+    mid = subprocess.run([sys.executable, str(ROOT / "policies/train_backbones.py"), "act_chunk_mid", "--dataset",
+                          str(ds), "--out", str(tmp_path / "train"), "--steps", "2"], capture_output=True, text=True,
+                         cwd=ROOT)
+    assert mid.returncode == 0, mid.stdout[-2000:] + mid.stderr[-2000:]
+    mid_ckpt = tmp_path / "train" / "act_chunk_mid" / "checkpoints" / "last" / "pretrained_model"
+    mid_recipe = json.loads((mid_ckpt / "recipe.json").read_text())
+    base = train_backbones.COMMITTED / "act_chunk_weak"
+    import hashlib
+
+    assert mid_recipe["continues"]["model_sha256"] == hashlib.sha256((base / "model.safetensors").read_bytes()).hexdigest()
+    mid_cfg, base_cfg = (json.loads((d / "config.json").read_text()) for d in (mid_ckpt, base))
+    assert {k: mid_cfg[k] for k in ("chunk_size", "n_action_steps", "dim_model")} == \
+        {k: base_cfg[k] for k in ("chunk_size", "n_action_steps", "dim_model")}
+    assert (mid_ckpt / "model.safetensors").read_bytes() != (base / "model.safetensors").read_bytes()  # it trained
+
     # Defect found in #9: lerobot's ACT / Diffusion configs normalise VISUAL, STATE and ACTION only,
     # so observation.environment_state (type ENV) reached the network raw. The saved preprocessor
     # must normalise it with the dataset's statistics, as lerobot-train and lerobot-eval apply it.
@@ -147,7 +164,8 @@ def test_recorded_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
 
 
 def test_the_committed_checkpoints_are_the_weights_the_published_table_ran():
-    """policies/checkpoints holds the GPU-trained ACT backbones: each one's weights are the ones every
+    """policies/checkpoints holds the GPU-trained ACT backbones (and the `_mid` siblings trained from
+    them or beside them on this CPU): each one's weights are the ones every
     unit of eval/results/learned recorded for it, and the harness runs it (on the CPU) with no
     training here. A retrained or replaced file would fail the first assertion."""
     import hashlib
@@ -166,6 +184,9 @@ def test_the_committed_checkpoints_are_the_weights_the_published_table_ran():
         ran = {json.loads(u.read_text())["policy_sha256"] for u in units.glob(f"{name}__*.json")}
         assert ran == {sha}, name
         recipe = json.loads((ckpt / "recipe.json").read_text())
+        if name in train_backbones.MID_CHOICE:  # trained here: the continued run, or the recipe's CPU draw
+            assert recipe["recipe"] in (name, train_backbones.CPU_DRAW.get(name)) and "CPU" in recipe["device"]
+            continue
         assert recipe["recipe"] == train_backbones.SIBLINGS.get(name, (name,))[0] and "cuda" in recipe["device"]
     scene = LiberoScene("libero_spatial", 0)
     policy = LeRobotBackbone(str(train_backbones.COMMITTED / "act_single"))
@@ -173,3 +194,36 @@ def test_the_committed_checkpoints_are_the_weights_the_published_table_ran():
     policy.reset(0)
     a = policy.act(scene, scene.read())
     assert a.shape == (7,) and np.isfinite(a).all() and np.abs(a).max() <= 1.5
+
+
+def test_the_mid_sibling_rule_keeps_the_checkpoint_closest_to_40_percent():
+    rates = {"x_mid@001000": 0.22, "x_mid@002000": 0.36, "x_mid@003000": 0.46, "x_cpufull@020000": 0.52}
+    assert train_backbones.choose_mid(rates) == "x_mid@002000"
+    assert train_backbones.choose_mid({"x_mid@002400": 0.50, "x_mid@001200": 0.30}) == "x_mid@001200"  # tie: earlier
+    assert train_backbones.choose_mid({"x_mid@003000": 0.0}) == "x_mid@003000"
+
+
+def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs():
+    """MID_CHOICE (which checkpoint each `_mid` sibling is) must be what choose_mid gives on the
+    uncorrected results eval/experiments.py learned_mid recorded (every candidate, n = 50 each),
+    not a hand pick; and the committed copy holds the weights those units ran."""
+    import hashlib
+
+    units = ROOT / "eval/results/learned_mid/units"
+    assert set(train_backbones.MID_CHOICE) == set(train_backbones.CONTINUED)
+    for name, (run, step) in train_backbones.MID_CHOICE.items():
+        prefixes = [f"{name}@"] + ([f"{train_backbones.CPU_DRAW[name]}_cpufull@"] if name in train_backbones.CPU_DRAW
+                                   else [])
+        rate, sha = {}, {}
+        for u in sorted(units.glob("*__baseline__*.json")):
+            cand = u.name.split("__")[0]
+            if any(cand.startswith(p) for p in prefixes):
+                payload = json.loads(u.read_text())
+                rate.setdefault(cand, []).extend(r["success"] for r in payload["records"])
+                sha[cand] = payload["policy_sha256"]
+        steps = train_backbones.CONTINUED[name][1] // train_backbones.CONTINUED[name][2]
+        assert len(rate) == steps + (name in train_backbones.CPU_DRAW) and all(len(v) == 50 for v in rate.values())
+        kept = train_backbones.choose_mid({c: float(np.mean(v)) for c, v in rate.items()})
+        assert kept.rsplit("@", 1)[1] == f"{step:06d}" and (run == name) == kept.startswith(f"{name}@"), name
+        committed = train_backbones.COMMITTED / name / "model.safetensors"
+        assert hashlib.sha256(committed.read_bytes()).hexdigest() == sha[kept], name
