@@ -77,6 +77,9 @@ CANDIDATE_5 = "default v4"
 CANDIDATE_6 = "default"
 CANDIDATE_7 = "default + target low-pass"
 CANDIDATE_8 = "default + target low-pass, rough 0.12-0.25"
+# candidate 9: the shipped default + the paper's grasp guidance at the paper's cap (0.05) in the
+# grasp phase, the one phase of phys c = 0.05 that moved the chunked ACTs (stage learned_phys)
+CANDIDATE_9 = "default + grasp guidance c=0.05"
 
 # Each correction alone (the others' authority 0), phys mode.
 ALONE = {
@@ -146,6 +149,7 @@ COMPARED = {
     # expert block but 40-49 (untouched) has been looked at
     CANDIDATE_8: PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.6,
                                             lowpass_rough_lo=0.12, lowpass_rough_hi=0.25),
+    CANDIDATE_9: PRESETS["default"].replace(phase_caps=(0.0, 0.05, 0.0, 1.0)),
     "temporal": PhysVLAConfig(mode="temporal"),
     "paper (eq. 2, c=0.05)": PRESETS["paper"],
     "paper Alg. 1 (c=1)": PRESETS["paper_alg1"],
@@ -192,7 +196,7 @@ CONFIRM6 = DESIGN6
 LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4, CANDIDATE_5, CANDIDATE_6)
 CANDIDATE_7_VARIANTS = (CANDIDATE_7, CANDIDATE_7 + ", alpha_max=0.8", CANDIDATE_7 + ", speed_hi=1",
                         CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1", CANDIDATE_8)
-LIFT_REPORTED = (*LIFT_CONFIGS, *CANDIDATE_7_VARIANTS)  # rows of the Lift / Fetch sections
+LIFT_REPORTED = (*LIFT_CONFIGS, *CANDIDATE_7_VARIANTS, CANDIDATE_9)  # rows of the Lift / Fetch sections
 # candidate 7's variants on the design seeds (LIBERO 0-4 and Lift / Fetch 7-26: stage design7)
 DESIGN7 = {name: COMPARED[name] for name in ("baseline", *CANDIDATE_7_VARIANTS)}
 # Chosen on the design seeds: candidate 7 (alpha_max 0.6, no speed fading): the jitter expert's jerk
@@ -215,6 +219,21 @@ CONFIRM7 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_6, CANDIDATE
 PHYS_PHASES = {f"phys c=0.05, {ph} only": PhysVLAConfig(mode="phys", phase_caps=tuple(0.05 * (i == k) for i in range(4)))
                for k, ph in enumerate(("approach", "grasp", "transport", "place"))}
 LEARNED_PHYS_SCREENED = ("act_chunk", "act_chunk_weak", "act_chunk_mid")
+# candidate 9 on the design seeds (LIBERO 0-4 on every backbone, Lift / Fetch 7-26: stages design9,
+# learned9) and on the learned confirmation block 5-9 (stage learned9_confirm), which no decision
+# about it looked at
+DESIGN9 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_9)}
+# Its confirmation on the experts (stage confirm9). Every expert init-state block but 40-49 has been
+# looked at, so the failure experts get fresh failure draws on init states 35-39 (draw_offset: the
+# episode on init state s draws its noise, aim error, bias and premature close from seed s + 1000);
+# no decision looked at these episodes. The clean expert has no draws: its episodes on 35-39 are the
+# ones section 3g ran (baseline and the shipped default seen; candidate 9 never). The shipped default
+# runs beside it as the reference.
+CONFIRM9_SEEDS, FRESH_DRAWS = range(35, 40), 1000
+CONFIRM9_BACKBONES = {"expert_clean": BACKBONES["expert_clean"],
+                      **{f"{b}+{FRESH_DRAWS}": {**BACKBONES[b], "draw_offset": FRESH_DRAWS}
+                         for b in ("expert_jitter", "expert_faulty", "expert_place_bias")}}
+CONFIRM9 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_6, CANDIDATE_9)}
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 # pairs in a complete LIBERO cell (10 tasks x 5 init states): the block sections show complete cells
@@ -457,6 +476,14 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                 if c != "baseline" and (p := paired(recs, c, b))["n"] >= FULL_CELL]
         if rows:
             lines += ["", f"## {title}\n", *PAIRED_HEAD, *rows]
+    recs = _block(records, CONFIRM9_SEEDS)
+    rows = [paired_row(f"{b} / {c}", p) for b in CONFIRM9_BACKBONES for c in CONFIRM9
+            if c != "baseline" and (p := paired(recs, c, b))["n"] >= FULL_CELL]
+    if rows:
+        lines += ["", "## 3h. Candidate 9 (the shipped default + the paper's grasp guidance at c = 0.05), confirmed "
+                  f"on init states 35-39 with fresh failure draws (seed + {FRESH_DRAWS}; `+{FRESH_DRAWS}` in the "
+                  "name), n = 50 per cell, the shipped default beside it; no decision looked at these episodes "
+                  "(the clean expert's are section 3g's, candidate 9 new on them)\n", *PAIRED_HEAD, *rows]
     lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
     if lift:
         lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",
