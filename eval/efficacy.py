@@ -223,7 +223,9 @@ LEARNED_PHYS_SCREENED = ("act_chunk", "act_chunk_weak", "act_chunk_mid")
 # learned9) and on the learned confirmation block 5-9 (stage learned9_confirm), which no decision
 # about it looked at
 DESIGN9 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_9)}
-# Its confirmation on the experts (stage confirm9). Every expert init-state block but 40-49 has been
+# Candidate 9 failed its design block on the learned ACTs (22 pairs lost for 14 won; act_chunk_weak
+# -12 pp), so neither confirmation stage below was run; confirm9's fresh-draw wiring is kept for a
+# next candidate. Its confirmation on the experts (stage confirm9). Every expert init-state block but 40-49 has been
 # looked at, so the failure experts get fresh failure draws on init states 35-39 (draw_offset: the
 # episode on init state s draws its noise, aim error, bias and premature close from seed s + 1000);
 # no decision looked at these episodes. The clean expert has no draws: its episodes on 35-39 are the
