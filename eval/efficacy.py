@@ -219,6 +219,15 @@ CONFIRM7 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_6, CANDIDATE
 PHYS_PHASES = {f"phys c=0.05, {ph} only": PhysVLAConfig(mode="phys", phase_caps=tuple(0.05 * (i == k) for i in range(4)))
                for k, ph in enumerate(("approach", "grasp", "transport", "place"))}
 LEARNED_PHYS_SCREENED = ("act_chunk", "act_chunk_weak", "act_chunk_mid")
+# Its one phase that helped (grasp only: +4, +14, +30 pp on the three on 0-4), confirmed on init
+# states 5-9, which no decision about it looked at (stage learned_phys_confirm). Rule fixed before it
+# ran: an option for chunked policies if, on 5-9, no chunked ACT loses more than 1 pair net and the
+# pooled paired difference over the three (n = 150) has its 95 % interval above 0. Outcome:
+# act_chunk_weak +20 [+9, +31] (10 / 0), act_chunk_mid +8 (9 / 5), act_chunk -4 (2 / 4): pooled +8.0
+# [+0.9, +15.1], but act_chunk lost 2 pairs net: the rule failed, no preset.
+PHYS_GRASP = "phys c=0.05, grasp only"
+LEARNED_PHYS_CONFIRM = {name: cfg for name, cfg in (("baseline", PhysVLAConfig(mode="baseline")),
+                                                    (PHYS_GRASP, PHYS_PHASES[PHYS_GRASP]))}
 # candidate 9 on the design seeds (LIBERO 0-4 on every backbone, Lift / Fetch 7-26: stages design9,
 # learned9) and on the learned confirmation block 5-9 (stage learned9_confirm), which no decision
 # about it looked at

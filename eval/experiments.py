@@ -612,7 +612,7 @@ def learned_mid(args) -> None:
 
 EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,"
                    "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,design7,confirm7,learned,learned_confirm,"
-                   "learned_phys,design9,learned9,learned9_confirm,confirm9")
+                   "learned_phys,learned_phys_confirm,design9,learned9,learned9_confirm,confirm9")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 LEARNED = "act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,diffusion_chunk"
 
@@ -699,6 +699,8 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
                        {k: ef.ALONE[k] for k in ef.LEARNED_ALONE}))
     if "learned_phys" in stages:  # the paper's capped blend one phase at a time, chunked ACTs, block 0-4
         blocks.append((ef.DESIGN_SEEDS, [n for n in names if n in ef.LEARNED_PHYS_SCREENED], ef.PHYS_PHASES))
+    if "learned_phys_confirm" in stages:  # its grasp phase alone on init states 5-9
+        blocks.append((ef.CONFIRM_SEEDS, [n for n in names if n in ef.LEARNED_PHYS_SCREENED], ef.LEARNED_PHYS_CONFIRM))
     if "learned9" in stages:  # candidate 9 on every learned backbone, design block 0-4
         blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN9))
     if "learned9_confirm" in stages:  # and on init states 5-9
@@ -735,7 +737,8 @@ def efficacy(args) -> None:
     _, secs = run_units(_efficacy_units(stages, experts), out, args.workers, args.backend)
     learned_secs = 0.0
     names = args.learned.split(",")
-    if ({"learned", "learned_confirm", "learned_phys", "learned9", "learned9_confirm"} & set(stages)
+    if ({"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm"}
+            & set(stages)
             and not args.learned_on_disk):
         ckpts = _checkpoints(names, args.checkpoints, "run policies/record_dataset.py then policies/train_backbones.py")
         _, learned_secs = run_units(_learned_units(stages, names, ckpts), RESULTS / "learned", args.workers,
