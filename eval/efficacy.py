@@ -232,7 +232,7 @@ LEARNED_PHYS_CONFIRM = {name: cfg for name, cfg in (("baseline", PhysVLAConfig(m
 # learned9) and on the learned confirmation block 5-9 (stage learned9_confirm), which no decision
 # about it looked at
 DESIGN9 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_9)}
-# Candidate 9 failed its design block on the learned ACTs (22 pairs lost for 14 won; act_chunk_weak
+# Candidate 9 failed its design block on the learned ACTs (24 pairs lost for 19 won; act_chunk_weak
 # -12 pp), so neither confirmation stage below was run; confirm9's fresh-draw wiring is kept for a
 # next candidate. Its confirmation on the experts (stage confirm9). Every expert init-state block but 40-49 has been
 # looked at, so the failure experts get fresh failure draws on init states 35-39 (draw_offset: the
