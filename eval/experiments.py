@@ -444,8 +444,9 @@ def learned(args) -> None:
                    len(units), about=(
                        "Backbones: LeRobot policies trained with lerobot-train by policies/train_backbones.py (each "
                        "one's command, seed, device and training time: recipes/<name>.json; `_weak` = an earlier "
-                       "checkpoint of the same run; `_mid` = a `_weak` checkpoint trained further on this CPU, the "
-                       "weak sibling in the 30-50 % band, chosen on init states 5-9 in eval/results/learned_mid) on "
+                       "checkpoint of the same run; `_mid` = the weak sibling in the 30-50 % band, trained on this CPU "
+                       "(a `_weak` checkpoint trained further, or the recipe run whole), chosen on init states 5-9 in "
+                       "eval/results/learned_mid) on "
                        "scripted-expert demonstrations (clean expert labels, DART "
                        "noise 0.1 and 0.3 on the executed x, y actions, successful episodes only) from init states "
                        "10-39 (policies/record_dataset.py); evaluated on init states 0 .. per-task - 1, which no "
@@ -614,6 +615,8 @@ EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3
                    "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,design7,confirm7,learned,learned_confirm,"
                    "learned_phys,learned_phys_confirm,design9,learned9,learned9_confirm,confirm9")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
+# the efficacy stages whose units run learned backbones (_learned_units)
+LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm"}
 LEARNED = "act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,diffusion_chunk"
 
 
@@ -686,7 +689,7 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
 
 
 def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) -> list:
-    """The learned backbones' units of the efficacy stages `learned`, `learned_phys` and `learned_confirm`."""
+    """The learned backbones' units of the efficacy stages in LEARNED_STAGES."""
     import efficacy as ef
 
     blocks = []
@@ -737,9 +740,7 @@ def efficacy(args) -> None:
     _, secs = run_units(_efficacy_units(stages, experts), out, args.workers, args.backend)
     learned_secs = 0.0
     names = args.learned.split(",")
-    if ({"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm"}
-            & set(stages)
-            and not args.learned_on_disk):
+    if LEARNED_STAGES & set(stages) and not args.learned_on_disk:
         ckpts = _checkpoints(names, args.checkpoints, "run policies/record_dataset.py then policies/train_backbones.py")
         _, learned_secs = run_units(_learned_units(stages, names, ckpts), RESULTS / "learned", args.workers,
                                     args.backend)

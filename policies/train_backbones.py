@@ -151,12 +151,17 @@ def command(name: str, dataset: str, out_root: str, steps: int | None = None, de
     if raw_env:
         args = [a.replace('"ENV": "MEAN_STD", ', "").replace('"ENV": "MIN_MAX", ', "") for a in args]
         name = name + RAW_ENV
-    exe = Path(sys.executable).with_name("lerobot-train")
-    head = [str(exe)] if exe.exists() else [sys.executable, "-m", "lerobot.scripts.lerobot_train"]
+    head = _lerobot_train()
     return [*head, f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset}", f"--policy.device={device}",
             f"--num_workers={num_workers}", *_COMMON, *args, f"--steps={n}",
             f"--save_freq={max(1, n // CHECKPOINTS_PER_RUN)}", f"--output_dir={out_root}/{name}",
             f"--job_name=physvla_{name}"]
+
+
+def _lerobot_train() -> list[str]:
+    """The lerobot-train entry point of this interpreter's environment."""
+    exe = Path(sys.executable).with_name("lerobot-train")
+    return [str(exe)] if exe.exists() else [sys.executable, "-m", "lerobot.scripts.lerobot_train"]
 
 
 def continued_command(name: str, dataset: str, out_root: str, steps: int | None = None, device: str = "cpu",
@@ -165,8 +170,7 @@ def continued_command(name: str, dataset: str, out_root: str, steps: int | None 
     weights and normalisation come from --policy.path; only the run's own settings are named."""
     base, n, every = CONTINUED[name]
     n = n if steps is None else steps
-    exe = Path(sys.executable).with_name("lerobot-train")
-    head = [str(exe)] if exe.exists() else [sys.executable, "-m", "lerobot.scripts.lerobot_train"]
+    head = _lerobot_train()
     return [*head, f"--policy.path={COMMITTED / base}", f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset}",
             f"--policy.device={device}", f"--num_workers={num_workers}", *_COMMON, "--batch_size=32", f"--steps={n}",
             f"--save_freq={min(every, n)}", f"--output_dir={out_root}/{name}", f"--job_name=physvla_{name}"]
