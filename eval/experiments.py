@@ -569,8 +569,8 @@ def learned_mid(args) -> None:
     first, out = args.first_seed, RESULTS / "learned_mid"
     cands: dict[str, tuple[str, Path]] = {}
     for name in args.learned.split(","):
-        if name not in tb.CONTINUED:
-            raise SystemExit(f"experiments: {name!r} is no `_mid` sibling; choose from {', '.join(tb.CONTINUED)}")
+        if name not in tb.MID_SIBLINGS:
+            raise SystemExit(f"experiments: {name!r} is no `_mid` sibling; choose from {', '.join(tb.MID_SIBLINGS)}")
         found = tb.mid_candidates(name, args.checkpoints)
         if not found:
             raise SystemExit(f"experiments: no candidate checkpoint of {name} under {args.checkpoints}; run "
@@ -598,8 +598,10 @@ def learned_mid(args) -> None:
                    f"{first + args.per_task - 1}", secs, len(units), about=(
                        "Candidates of each `_mid` sibling (policies/train_backbones.py CONTINUED, CPU_DRAW): its "
                        "committed GPU first checkpoint trained further on this CPU (lerobot-train --policy.path=<it>, "
-                       "a fresh AdamW at the recipe's learning rate, batch 32, seed 1000), every saved step; and, for "
-                       "act_single, the recipe run whole on this CPU (another draw of the same recipe, data and seed). "
+                       "a fresh AdamW at the recipe's learning rate, batch 32, seed 1000), every saved step; for "
+                       "act_single, the recipe run whole on this CPU (another draw of the same recipe, data and seed), its "
+                       "final checkpoint; for act_chunk_mid2 (a second round, after act_chunk_mid's kept checkpoint "
+                       "landed at 16 % on init states 0-4), every checkpoint of act_chunk run whole on this CPU. "
                        f"Each ran uncorrected on init states {first}-{first + args.per_task - 1} of the 10 tasks (n = "
                        f"{10 * args.per_task}); the learned table reports the kept one on init states 0-4. Rule, "
                        "written before any of them ran: keep the candidate whose success here lies closest to 40 %, "

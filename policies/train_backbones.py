@@ -31,7 +31,8 @@ the 30-50 % band #9 asks for; the `_mid` siblings (`CONTINUED`, `CPU_DRAW`, `MID
     .venv/bin/python policies/train_backbones.py act_chunk_mid      # continues act_chunk_weak here
     .venv/bin/python policies/train_backbones.py act_single_mid     # continues act_single_weak here
     .venv/bin/python policies/train_backbones.py act_single --out outputs/train/cpu_full
-    .venv/bin/python eval/experiments.py learned_mid --learned act_single_mid,act_chunk_mid
+    .venv/bin/python policies/train_backbones.py act_chunk --out outputs/train/cpu_full   # act_chunk_mid2
+    .venv/bin/python eval/experiments.py learned_mid --learned act_single_mid,act_chunk_mid,act_chunk_mid2
 
 Normalisation: lerobot 0.6.1's ACT and Diffusion configs normalise only the VISUAL, STATE and
 ACTION feature types; `observation.environment_state` (type ENV: object and target xyz, metres)
@@ -107,7 +108,15 @@ CONTINUED: dict[str, tuple[str, int, int]] = {
     "act_single_mid": ("act_single_weak", 4000, 1000),
     "act_chunk_mid": ("act_chunk_weak", 3600, 1200),
 }
-CPU_DRAW: dict[str, str] = {"act_single_mid": "act_single"}  # name -> recipe run whole on this CPU
+# Second round for the chunked sibling: act_chunk_mid (step 1200 of its continued run, 42 % on init
+# states 5-9) landed at 16 % on 0-4, below the band. Its candidates, fixed before any ran: every
+# checkpoint of act_chunk run whole on this CPU (2400 .. 12000); the same rule keeps one.
+# name -> (recipe run whole on this CPU, the steps of that run that are candidates)
+CPU_DRAW: dict[str, tuple[str, tuple[int, ...]]] = {
+    "act_single_mid": ("act_single", (20000,)),
+    "act_chunk_mid2": ("act_chunk", (2400, 4800, 7200, 9600, 12000)),
+}
+MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW]))  # every `_mid` sibling, continued or drawn
 CPU_DRAW_DIR = "cpu_full"  # where, under the training root, the whole CPU runs are
 # name -> the kept candidate: (its run's directory under the training root, step), as
 # eval/results/learned_mid chose it (a test recomputes the choice from that file's units)
@@ -117,14 +126,16 @@ MID_CHOICE: dict[str, tuple[str, int]] = {"act_single_mid": (f"{CPU_DRAW_DIR}/ac
 
 def mid_candidates(name: str, out_root: str = "outputs/train") -> dict[str, Path]:
     """A `_mid` sibling's candidate checkpoints on disk: `<name>@<step>` for its continued run,
-    `<recipe>_cpufull@<step>` for the final checkpoint of its recipe's whole run on this CPU."""
+    `<recipe>_cpufull@<step>` for the named checkpoints of its recipe's whole run on this CPU."""
     found = {}
-    for p in sorted((Path(out_root) / name / "checkpoints").glob("[0-9]*/pretrained_model")):
-        found[f"{name}@{p.parent.name}"] = p
+    if name in CONTINUED:
+        for p in sorted((Path(out_root) / name / "checkpoints").glob("[0-9]*/pretrained_model")):
+            found[f"{name}@{p.parent.name}"] = p
     if name in CPU_DRAW:
-        recipe = CPU_DRAW[name]
-        p = Path(out_root) / CPU_DRAW_DIR / recipe / "checkpoints" / f"{RECIPES[recipe][1]:06d}" / "pretrained_model"
-        found[f"{recipe}_cpufull@{p.parent.name}"] = p
+        recipe, steps = CPU_DRAW[name]
+        for step in steps:
+            p = Path(out_root) / CPU_DRAW_DIR / recipe / "checkpoints" / f"{step:06d}" / "pretrained_model"
+            found[f"{recipe}_cpufull@{p.parent.name}"] = p
     return {k: p for k, p in found.items() if (p / "model.safetensors").exists()}
 
 
