@@ -32,6 +32,7 @@ the 30-50 % band #9 asks for; the `_mid` siblings (`CONTINUED`, `CPU_DRAW`, `MID
     .venv/bin/python policies/train_backbones.py act_single_mid     # continues act_single_weak here
     .venv/bin/python policies/train_backbones.py act_single --out outputs/train/cpu_full
     .venv/bin/python policies/train_backbones.py act_chunk --out outputs/train/cpu_full   # act_chunk_mid2
+    .venv/bin/python policies/train_backbones.py act_chunk_mid2   # resumes that run from 7200 (RESUMED)
     .venv/bin/python eval/experiments.py learned_mid --learned act_single_mid,act_chunk_mid,act_chunk_mid2
 
 Normalisation: lerobot 0.6.1's ACT and Diffusion configs normalise only the VISUAL, STATE and
@@ -116,7 +117,16 @@ CPU_DRAW: dict[str, tuple[str, tuple[int, ...]]] = {
     "act_single_mid": ("act_single", (20000,)),
     "act_chunk_mid2": ("act_chunk", (2400, 4800, 7200, 9600, 12000)),
 }
-MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW]))  # every `_mid` sibling, continued or drawn
+# Third round for act_chunk_mid2: the whole CPU run went from 8 % (step 7200) to 68 % (9600) on init
+# states 5-9, and the rule tied 2400 (12 %) with 9600 (68 %) at 28 points from 40 % (ties to the
+# earlier: 2400): no candidate in the band. Finer candidates inside that jump, fixed before any ran:
+# the same run resumed from its 7200 checkpoint (`lerobot-train --resume`: its weights, optimizer,
+# scheduler and data order) to 9600, saving every 400 steps; its 9600 is not a candidate (the whole
+# run's is), only a check that resuming retraces the run. The same rule keeps one of all candidates.
+# name -> (recipe whose CPU_DRAW run is resumed, from step, to step, save every)
+RESUMED: dict[str, tuple[str, int, int, int]] = {"act_chunk_mid2": ("act_chunk", 7200, 9600, 400)}
+RESUMED_SUFFIX = "_fine"  # the resumed run's directory: <CPU_DRAW_DIR>/<recipe>_fine
+MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW, *RESUMED]))  # every `_mid` sibling
 CPU_DRAW_DIR = "cpu_full"  # where, under the training root, the whole CPU runs are
 # name -> the kept candidate: (its run's directory under the training root, step), as
 # eval/results/learned_mid chose it (a test recomputes the choice from that file's units)
@@ -136,6 +146,11 @@ def mid_candidates(name: str, out_root: str = "outputs/train") -> dict[str, Path
         for step in steps:
             p = Path(out_root) / CPU_DRAW_DIR / recipe / "checkpoints" / f"{step:06d}" / "pretrained_model"
             found[f"{recipe}_cpufull@{p.parent.name}"] = p
+    if name in RESUMED:
+        recipe, start, stop, every = RESUMED[name]
+        run = Path(out_root) / CPU_DRAW_DIR / (recipe + RESUMED_SUFFIX)
+        for step in range(start + every, stop, every):
+            found[f"{recipe}{RESUMED_SUFFIX}@{step:06d}"] = run / "checkpoints" / f"{step:06d}" / "pretrained_model"
     return {k: p for k, p in found.items() if (p / "model.safetensors").exists()}
 
 
@@ -185,6 +200,16 @@ def continued_command(name: str, dataset: str, out_root: str, steps: int | None 
     return [*head, f"--policy.path={COMMITTED / base}", f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset}",
             f"--policy.device={device}", f"--num_workers={num_workers}", *_COMMON, "--batch_size=32", f"--steps={n}",
             f"--save_freq={min(every, n)}", f"--output_dir={out_root}/{name}", f"--job_name=physvla_{name}"]
+
+
+def resumed_command(name: str, out_root: str, device: str = "cpu", num_workers: int = 0) -> list[str]:
+    """The lerobot-train argv that resumes a whole CPU run (RESUMED) from a checkpoint into its own
+    directory: the run's config, weights, optimizer, scheduler and data order come from the checkpoint."""
+    recipe, start, stop, every = RESUMED[name]
+    ckpt = Path(out_root) / CPU_DRAW_DIR / recipe / "checkpoints" / f"{start:06d}" / "pretrained_model"
+    return [*_lerobot_train(), "--resume=true", f"--config_path={ckpt / 'train_config.json'}",
+            f"--policy.device={device}", f"--num_workers={num_workers}", f"--steps={stop}", f"--save_freq={every}",
+            f"--output_dir={Path(out_root) / CPU_DRAW_DIR / (recipe + RESUMED_SUFFIX)}"]
 
 
 def checkpoint(name: str, out_root: str = "outputs/train") -> Path:
@@ -237,10 +262,12 @@ def train(name: str, dataset: str, out_root: str, steps: int | None = None, devi
         raise SystemExit(f"train_backbones: no dataset at {dataset}; run policies/record_dataset.py first")
     if name in CONTINUED:
         cmd = continued_command(name, dataset, out_root, steps, device, num_workers)
+    elif name in RESUMED:
+        cmd = resumed_command(name, out_root, device, num_workers)
     else:
         cmd = command(name, dataset, out_root, steps, device, num_workers, raw_env)
     name = name + RAW_ENV if raw_env else name
-    out = Path(out_root) / name
+    out = Path(next(a for a in cmd if a.startswith("--output_dir=")).split("=", 1)[1])
     if out.exists():  # lerobot-train refuses an existing output dir without --resume
         shutil.rmtree(out)
     print("+ " + shlex.join(cmd), flush=True)
@@ -256,22 +283,28 @@ def train(name: str, dataset: str, out_root: str, steps: int | None = None, devi
               "steps": int(next(a for a in cmd if a.startswith("--steps=")).split("=")[1]), "seed": SEED,
               "commit": _commit(), "dataset": {"root": dataset, "episodes": info.get("total_episodes"),
                                                "frames": info.get("total_frames")}}
-    if name in CONTINUED:  # the run it continues, by the weights it started from
+    if name in CONTINUED or name in RESUMED:  # the run it continues, by the weights it started from
         import hashlib
 
-        base = COMMITTED / CONTINUED[name][0]
-        recipe["continues"] = {"checkpoint": str(base.relative_to(COMMITTED.parent.parent)),
-                               "model_sha256": hashlib.sha256((base / "model.safetensors").read_bytes()).hexdigest()}
+        if name in CONTINUED:
+            base, key = COMMITTED / CONTINUED[name][0], "continues"
+            where = str(base.relative_to(COMMITTED.parent.parent))
+        else:
+            base = Path(next(a for a in cmd if a.startswith("--config_path=")).split("=", 1)[1]).parent
+            key, where = "resumes", str(base)
+        recipe[key] = {"checkpoint": where,
+                       "model_sha256": hashlib.sha256((base / "model.safetensors").read_bytes()).hexdigest()}
     for ckpt in sorted((out / "checkpoints").glob("*/pretrained_model")):  # every checkpoint knows its recipe
         (ckpt / "recipe.json").write_text(json.dumps({**recipe, "checkpoint": ckpt.parent.name}, indent=1))
-    print(f"{name}: trained in {secs / 60:.1f} min on {recipe['device']} -> {checkpoint(name, out_root)}")
+    print(f"{name}: trained in {secs / 60:.1f} min on {recipe['device']} -> {out / 'checkpoints'}")
     return checkpoint(name, out_root)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("recipe", nargs="?", choices=[*RECIPES, *CONTINUED, "all"], default="all",
-                    help="a recipe, a `_mid` sibling that continues a committed checkpoint, or all recipes")
+    ap.add_argument("recipe", nargs="?", choices=[*RECIPES, *CONTINUED, *RESUMED, "all"], default="all",
+                    help="a recipe, a `_mid` sibling that continues a committed checkpoint or resumes a CPU run, "
+                         "or all recipes")
     ap.add_argument("--dataset", default=DATASET)
     ap.add_argument("--out", default="outputs/train")
     ap.add_argument("--steps", type=int, default=None, help="override the recipe's step count (smoke tests)")
@@ -289,8 +322,9 @@ def main() -> None:
     if args.list:
         for n in names:
             cmd = (continued_command(n, args.dataset, args.out, None, args.device, args.num_workers)
-                   if n in CONTINUED else command(n, args.dataset, args.out, None, args.device, args.num_workers,
-                                                  args.raw_env))
+                   if n in CONTINUED else resumed_command(n, args.out, args.device, args.num_workers)
+                   if n in RESUMED else command(n, args.dataset, args.out, None, args.device, args.num_workers,
+                                                args.raw_env))
             print(n + ":\n  " + shlex.join(cmd))
         return
     with ThreadPoolExecutor(max_workers=max(1, args.parallel)) as pool:  # each recipe is its own process

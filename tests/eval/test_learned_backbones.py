@@ -214,7 +214,9 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
     assert set(train_backbones.MID_CHOICE) <= set(train_backbones.MID_SIBLINGS)
     for name, (run, step) in train_backbones.MID_CHOICE.items():
         continued, drawn = train_backbones.CONTINUED.get(name), train_backbones.CPU_DRAW.get(name)
-        prefixes = ([f"{name}@"] if continued else []) + ([f"{drawn[0]}_cpufull@"] if drawn else [])
+        resumed = train_backbones.RESUMED.get(name)
+        prefixes = (([f"{name}@"] if continued else []) + ([f"{drawn[0]}_cpufull@"] if drawn else [])
+                    + ([f"{resumed[0]}{train_backbones.RESUMED_SUFFIX}@"] if resumed else []))
         rate, sha = {}, {}
         for u in sorted(units.glob("*__baseline__*.json")):
             cand = u.name.split("__")[0]
@@ -222,7 +224,8 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
                 payload = json.loads(u.read_text())
                 rate.setdefault(cand, []).extend(r["success"] for r in payload["records"])
                 sha[cand] = payload["policy_sha256"]
-        steps = (continued[1] // continued[2] if continued else 0) + (len(drawn[1]) if drawn else 0)
+        steps = ((continued[1] // continued[2] if continued else 0) + (len(drawn[1]) if drawn else 0)
+                 + ((resumed[2] - resumed[1]) // resumed[3] - 1 if resumed else 0))
         assert len(rate) == steps and all(len(v) == 50 for v in rate.values()), name
         kept = train_backbones.choose_mid({c: float(np.mean(v)) for c, v in rate.items()})
         assert kept.rsplit("@", 1)[1] == f"{step:06d}" and (run == name) == kept.startswith(f"{name}@"), name
