@@ -588,6 +588,7 @@ def learned_mid(args) -> None:
             a = agg[(n, "baseline")]
             r = json.loads((c / "recipe.json").read_text()) if (c / "recipe.json").exists() else {}
             how = (f"continues {Path(r['continues']['checkpoint']).name} (GPU)" if "continues" in r
+                   else f"the whole run resumed from {Path(r['resumes']['checkpoint']).parent.name}" if "resumes" in r
                    else f"{r.get('recipe', '?')} run whole")
             rows.append(f"| {name} | `{n}` | {how} | {int(n.rsplit('@', 1)[1])} of {r.get('steps', '?')} | "
                         f"{a['successes']} / {a['n']} | {100 * a['success']:.0f}% [{100 * a['ci'][0]:.0f}, "
@@ -601,15 +602,19 @@ def learned_mid(args) -> None:
                        "a fresh AdamW at the recipe's learning rate, batch 32, seed 1000), every saved step; for "
                        "act_single, the recipe run whole on this CPU (another draw of the same recipe, data and seed), its "
                        "final checkpoint; for act_chunk_mid2 (a second round, after act_chunk_mid's kept checkpoint "
-                       "landed at 16 % on init states 0-4), every checkpoint of act_chunk run whole on this CPU. "
+                       "landed at 16 % on init states 0-4), every checkpoint of act_chunk run whole on this CPU and, a third "
+                       "round after those tied at 12 % and 68 % (none in the band), that run resumed from its step 7200 "
+                       "(lerobot-train --resume) saving every 400 steps. "
                        f"Each ran uncorrected on init states {first}-{first + args.per_task - 1} of the 10 tasks (n = "
                        f"{10 * args.per_task}); the learned table reports the kept one on init states 0-4. Rule, "
                        "written before any of them ran: keep the candidate whose success here lies closest to 40 %, "
                        "ties to the earlier step."))
     lines += ["| sibling | candidate | how | step of its run | successes | success [95 % Wilson] | mean jerk (m/s^3) | "
               "trained on, minutes (whole run) | weights (sha256) | |", "|---|---|---|---|---|---|---|---|---|---|",
-              *rows, "", "Kept (policies/train_backbones.py MID_CHOICE names these): " +
-              ", ".join(f"{n}: `{c}`" for n, c in chosen.items())]
+              *rows, "", "Kept (policies/train_backbones.py MID_CHOICE names those in the 30-50 % band): " +
+              ", ".join(f"{n}: `{c}`" + ("" if 0.30 <= agg[(c, "baseline")]["success"] <= 0.50 else
+                                          f" ({100 * agg[(c, 'baseline')]['success']:.0f} %: outside the band, no sibling)")
+                        for n, c in chosen.items())]
     write(out, lines, records)
 
 

@@ -129,7 +129,9 @@ RESUMED_SUFFIX = "_fine"  # the resumed run's directory: <CPU_DRAW_DIR>/<recipe>
 MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW, *RESUMED]))  # every `_mid` sibling
 CPU_DRAW_DIR = "cpu_full"  # where, under the training root, the whole CPU runs are
 # name -> the kept candidate: (its run's directory under the training root, step), as
-# eval/results/learned_mid chose it (a test recomputes the choice from that file's units)
+# eval/results/learned_mid chose it (a test recomputes the choice from that file's units). A sibling
+# whose pick lies outside 30-50 % on init states 5-9 is no backbone and is not named here:
+# act_chunk_mid2's pick over its rounds is act_chunk_fine@7600, 18 % [10, 31] (tied with 9200's 62 %).
 MID_CHOICE: dict[str, tuple[str, int]] = {"act_single_mid": (f"{CPU_DRAW_DIR}/act_single", 20000),
                                           "act_chunk_mid": ("act_chunk_mid", 1200)}
 
