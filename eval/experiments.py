@@ -620,10 +620,12 @@ def learned_mid(args) -> None:
 
 EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,"
                    "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,design7,confirm7,learned,learned_confirm,"
-                   "learned_phys,learned_phys_confirm,design9,learned9,learned9_confirm,confirm9")
+                   "learned_phys,learned_phys_confirm,design9,learned9,learned9_confirm,confirm9,design10,learned10,"
+                   "learned10_confirm,confirm10")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
-LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm"}
+LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
+                  "learned10", "learned10_confirm"}
 LEARNED = "act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,diffusion_chunk"
 
 
@@ -658,16 +660,19 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
                                   ("confirm6", ef.CONFIRM6_SEEDS, ef.CONFIRM6),
                                   ("design7", ef.DESIGN_SEEDS, ef.DESIGN7),
                                   ("design9", ef.DESIGN_SEEDS, ef.DESIGN9),
+                                  ("design10", ef.DESIGN_SEEDS, ef.DESIGN10),
                                   ("confirm7", ef.CONFIRM7_SEEDS, ef.CONFIRM7)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
                       for b in experts for t in range(10) for s in seeds]
-    if "confirm9" in stages:  # candidate 9 on init states 35-39, fresh failure draws (ef.CONFIRM9_BACKBONES)
-        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM9_BACKBONES[b]) for name, cfg in ef.CONFIRM9.items()
-                  for b in ef.CONFIRM9_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
+    for stage, configs in (("confirm9", ef.CONFIRM9), ("confirm10", ef.DESIGN10)):
+        if stage in stages:  # init states 35-39, fresh failure draws (ef.CONFIRM9_BACKBONES)
+            units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM9_BACKBONES[b]) for name, cfg in configs.items()
+                      for b in ef.CONFIRM9_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
     lift_stages = {"lift": ((ef.LIFT_DESIGN, ef.LIFT_CONFIRM), {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}),
                    "design7": ((ef.LIFT_DESIGN,), ef.DESIGN7), "confirm7": ((ef.LIFT_CONFIRM,), ef.CONFIRM7),
-                   "design9": ((ef.LIFT_DESIGN,), ef.DESIGN9)}
+                   "design9": ((ef.LIFT_DESIGN,), ef.DESIGN9), "design10": ((ef.LIFT_DESIGN,), ef.DESIGN10),
+                   "confirm10": ((ef.LIFT_CONFIRM,), ef.DESIGN10)}
     for stage, (blocks, lift_cfgs) in lift_stages.items():
         if stage not in stages:
             continue
@@ -715,6 +720,10 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
         blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN9))
     if "learned9_confirm" in stages:  # and on init states 5-9
         blocks.append((ef.CONFIRM_SEEDS, names, ef.DESIGN9))
+    if "learned10" in stages:  # candidate 10 (and the shipped default, its reference), block 0-4
+        blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN10))
+    if "learned10_confirm" in stages:  # and on init states 5-9
+        blocks.append((ef.CONFIRM_SEEDS, names, ef.DESIGN10))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],

@@ -4,7 +4,8 @@
     grasp      corrections.grasp_guidance
     transport  corrections.transport_smoothing
     place      corrections.place_deceleration        (eq. 5), or corrections.place_redirect
-               (place_rule=redirect), or corrections.release_veto (place_rule=release_veto)
+               (place_rule=redirect), or corrections.release_veto (place_rule=release_veto),
+               then corrections.release_assist (release_assist_m > 0)
     (mode temporal: corrections.temporal_ema in every phase, instead of the above)
 
 The per-env arithmetic is compiled with numba (microseconds an env-step, where small-array numpy
@@ -27,12 +28,13 @@ from numba import njit
 
 from lerobot_physvla.core.corrections.approach_veto import approach_veto
 from lerobot_physvla.core.corrections.base import (
-    ACTIVE, CARRIED, CARRY_REACH_M, D_OBJ_XY, D_TGT_XY, EEF, HIGH, HOLD, LIFT, LOW, N_GEO, OBJ, PHASE_REF_OBJECT,
-    PLACE_RULE, RELEASE_CARRY, TGT,
+    ACTIVE, ASSIST_M, CARRIED, CARRY_REACH_M, D_OBJ_XY, D_TGT_XY, EEF, HIGH, HOLD, LIFT, LOW, N_GEO, OBJ,
+    PHASE_REF_OBJECT, PLACE_RULE, RELEASE_CARRY, STALL, TGT,
 )
 from lerobot_physvla.core.corrections.grasp_guidance import grasp_guidance
 from lerobot_physvla.core.corrections.place_deceleration import place_deceleration
 from lerobot_physvla.core.corrections.place_redirect import place_redirect
+from lerobot_physvla.core.corrections.release_assist import release_assist
 from lerobot_physvla.core.corrections.release_veto import release_veto
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
 from lerobot_physvla.core.corrections.transport_smoothing import transport_smoothing
@@ -69,6 +71,8 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
         transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == PLACE and p[PLACE_RULE] > 1.5:
         release_veto(a_raw, a_phys, idx, geo, p, mem, commit)
+        if p[ASSIST_M] > 0.0:
+            release_assist(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == PLACE and p[PLACE_RULE] > 0.5:
         place_redirect(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == PLACE:
@@ -77,6 +81,7 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
         mem[ACTIVE] = 1.0 if phase == TRANSPORT else 0.0
         if phase != PLACE:
             mem[HOLD] = 0.0
+            mem[STALL] = 0.0
     for k in range(a_phys.shape[0]):
         a_phys[k] = min(max(a_phys[k], p[LOW]), p[HIGH])
 

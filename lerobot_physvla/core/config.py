@@ -166,6 +166,12 @@ class PhysVLAConfig:
             hand does not rise while a release is held back, (3) a hold steers to half of
             redirect_tol_m before it lets the policy's open through (docs/method.md: the traced
             failures of the release veto).
+        release_assist_m: with place_rule=release_veto, open the gripper for a policy that holds
+            the object still over the target (centre within redirect_tol_m horizontally, at most
+            this far above the target's, the target at the object's resting level) for
+            assist_steps control steps, commanding closed; kept open while the phase stays place.
+            Metres; 0 = off (corrections/release_assist.py: the traced failure).
+        assist_steps: control steps in a row the hold must last before release_assist_m opens.
         phase_ref: what d_tgt_xy of eq. (3) measures from once the object is lifted: eef (paper)
             | object (the held object's centre; a rim grasp holds it centimetres off the hand).
         lowpass: off | adaptive: a low-pass on the executed position channels whose strength
@@ -210,6 +216,8 @@ class PhysVLAConfig:
     redirect_tol_m: float = 0.0
     hold_steps: int = 40
     release_carry: bool = False
+    release_assist_m: float = 0.0
+    assist_steps: int = 10
     phase_ref: str = "eef"
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
@@ -266,10 +274,12 @@ class PhysVLAConfig:
             raise ValueError("physvla: need 0 <= lowpass_rough_lo < lowpass_rough_hi, got "
                              f"{self.lowpass_rough_lo}, {self.lowpass_rough_hi}")
         if not (self.veto_height_m >= 0 and self.veto_reach_m >= 0 and self.redirect_gain > 0
-                and self.redirect_tol_m >= 0 and self.hold_steps >= 0):
+                and self.redirect_tol_m >= 0 and self.hold_steps >= 0 and self.release_assist_m >= 0
+                and self.assist_steps >= 1):
             raise ValueError("physvla: need veto_height_m >= 0, veto_reach_m >= 0, redirect_gain > 0, "
-                             f"redirect_tol_m >= 0 and hold_steps >= 0, got {self.veto_height_m}, "
-                             f"{self.veto_reach_m}, {self.redirect_gain}, {self.redirect_tol_m}, {self.hold_steps}")
+                             "redirect_tol_m >= 0, hold_steps >= 0, release_assist_m >= 0 and assist_steps >= 1, got "
+                             f"{self.veto_height_m}, {self.veto_reach_m}, {self.redirect_gain}, {self.redirect_tol_m}, "
+                             f"{self.hold_steps}, {self.release_assist_m}, {self.assist_steps}")
 
     @property
     def caps(self) -> tuple[float, float, float, float]:

@@ -238,3 +238,46 @@ def test_release_carry_keeps_a_set_down_object_in_place_while_it_is_at_the_hand(
     assert carried_phase(GRASP, geo, mem, True) == GRASP and mem[CARRIED] == 0
     geo[OBJ:OBJ + 3] = (0.14, 0.0, 0.94)  # back at the hand: a new grasp, not a carried object
     assert carried_phase(GRASP, geo, mem, True) == GRASP
+
+
+def test_release_assist_opens_only_after_a_still_hold_over_a_surface_target_and_stays_open():
+    from lerobot_physvla.core.corrections.base import LIFT, STALL, TGT
+    from lerobot_physvla.core.corrections.release_assist import release_assist
+
+    idx, geo, p, mem = ctx(place_rule="release_veto", redirect_tol_m=0.02, release_assist_m=0.04, assist_steps=3)
+    geo[TGT:TGT + 3] = (0.12, -0.01, 0.902)  # the plate, at the bowl's resting level
+    geo[OBJ:OBJ + 3] = (0.125, -0.005, 0.923)  # the traced failure: held 2 cm above it, on target
+    geo[LIFT] = 0.025
+    hold = np.array([0.01, 0.0, -0.01, 0.0, 0.0, 0.0, 1.0])  # still, gripper closed (robosuite: +1)
+    # a look-ahead step of a chunk neither counts nor opens
+    assert run(release_assist, hold, idx, geo, p, mem, commit=False)[6] == 1.0 and mem[STALL] == 0
+    outs = [run(release_assist, hold, idx, geo, p, mem)[6] for _ in range(3)]
+    assert outs == [1.0, 1.0, -1.0]  # opened on the third still step in a row
+    moving = hold.copy()
+    moving[2] = 0.5
+    assert run(release_assist, moving, idx, geo, p, mem)[6] == -1.0  # latched: stays open
+    np.testing.assert_array_equal(run(release_assist, moving, idx, geo, p, mem)[:6], moving[:6])  # arm the policy's
+
+
+@pytest.mark.parametrize("case", ["moving", "off_target", "too_high", "target_in_the_air", "already_open"])
+def test_release_assist_leaves_every_other_hold_alone(case):
+    from lerobot_physvla.core.corrections.base import LIFT, STALL, TGT
+    from lerobot_physvla.core.corrections.release_assist import release_assist
+
+    idx, geo, p, mem = ctx(place_rule="release_veto", redirect_tol_m=0.02, release_assist_m=0.04, assist_steps=3)
+    geo[TGT:TGT + 3] = (0.12, -0.01, 0.902)
+    geo[OBJ:OBJ + 3] = (0.125, -0.005, 0.923)
+    geo[LIFT] = 0.025
+    a = np.array([0.01, 0.0, -0.01, 0.0, 0.0, 0.0, 1.0])
+    if case == "moving":
+        a[1] = -0.2  # still lowering / adjusting: the policy's own place
+    elif case == "off_target":
+        geo[OBJ] = 0.15  # 3 cm off: the release veto's business, not this one's
+    elif case == "too_high":
+        geo[OBJ + 2] = 0.96  # 6 cm above the plate
+    elif case == "target_in_the_air":  # robosuite Lift: the goal 0.1 m above the cube's rest
+        geo[TGT + 2], geo[OBJ + 2], geo[LIFT] = 1.0, 1.0, 0.1
+    elif case == "already_open":
+        a[6] = -1.0
+    outs = [run(release_assist, a, idx, geo, p, mem) for _ in range(6)]
+    assert all(np.array_equal(o, a) for o in outs) and mem[STALL] == 0

@@ -1,0 +1,50 @@
+"""Place: a release for a policy that holds the object over the target and stops (beyond the
+paper; release_assist_m > 0, with place_rule=release_veto).
+
+    on target:  |p_obj_xy - p_tgt_xy| <= tol,  -tol <= p_obj_z - p_tgt_z <= h        (metres)
+    a surface:  |p_tgt_z - z_rest| <= SUPPORT_M  (the target lies at the object's resting level)
+    still:      max_k |a_raw_pos,k| < STILL_U while the policy commands closed         (action units)
+    after `assist_steps` control steps in a row on target, on a surface and still:
+        gripper <- open, and kept open while the phase stays place
+
+Traced failure (eval/results/learned_mid, docs/method.md): weak chunked ACTs carry the bowl to the
+plate, lower it to 1-4 cm above the plate's origin (or set it down on it) and then hold it there,
+gripper closed and arm still, until the episode ends; on init states 0-4, 22 of act_chunk_mid's 42
+failures end so. A policy that releases by itself never meets the condition (it does not stay
+still with the gripper closed over the target), and a target in the air (robosuite Lift's goal
+above the cube) is no surface, so a lifted object is never let go there. The release veto's
+tolerance (redirect_tol_m) says what "on target" is, so the two rules agree: a release this rule
+makes is one the veto would let through.
+"""
+
+from numba import njit
+
+from lerobot_physvla.core.corrections.base import (ASSIST_M, ASSIST_STEPS, GRIPPER, GRIPPER_OPEN, LIFT, METRES_PER_UNIT,
+                                                   OBJ, REDIRECT_TOL_M, STALL, TGT)
+
+STILL_U = 0.05  # the policy commands no motion: every position channel below this, action units
+SUPPORT_M = 0.05  # the target is a surface: within this of the object's resting height, metres
+
+
+@njit(cache=True, error_model="numpy")
+def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
+    """Gripper opened once the policy has held the object still over the target for assist_steps."""
+    g = idx[GRIPPER]
+    if g < 0:
+        return
+    latched = mem[STALL] >= p[ASSIST_STEPS]
+    closed = a_raw[g] * p[GRIPPER_OPEN] < 0.0
+    tol = p[REDIRECT_TOL_M]
+    ex, ey = geo[TGT] - geo[OBJ], geo[TGT + 1] - geo[OBJ + 1]
+    dz = geo[OBJ + 2] - geo[TGT + 2]
+    rest_z = geo[OBJ + 2] - geo[LIFT]
+    still = True
+    for k in range(3):
+        if abs(a_raw[idx[k]]) >= STILL_U:
+            still = False
+    stalled = (closed and still and ex * ex + ey * ey <= tol * tol and -tol <= dz <= p[ASSIST_M]
+               and abs(geo[TGT + 2] - rest_z) <= SUPPORT_M)
+    if latched or (stalled and mem[STALL] + 1.0 >= p[ASSIST_STEPS]):
+        a_phys[g] = p[GRIPPER_OPEN]
+    if commit:
+        mem[STALL] = mem[STALL] if latched else (mem[STALL] + 1.0 if stalled else 0.0)
