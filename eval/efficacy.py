@@ -202,7 +202,7 @@ CONFIRM6 = DESIGN6
 LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4, CANDIDATE_5, CANDIDATE_6)
 CANDIDATE_7_VARIANTS = (CANDIDATE_7, CANDIDATE_7 + ", alpha_max=0.8", CANDIDATE_7 + ", speed_hi=1",
                         CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1", CANDIDATE_8)
-LIFT_REPORTED = (*LIFT_CONFIGS, *CANDIDATE_7_VARIANTS, CANDIDATE_9)  # rows of the Lift / Fetch sections
+LIFT_REPORTED = (*LIFT_CONFIGS, *CANDIDATE_7_VARIANTS, CANDIDATE_9, CANDIDATE_10)  # rows of the Lift / Fetch sections
 # candidate 7's variants on the design seeds (LIBERO 0-4 and Lift / Fetch 7-26: stage design7)
 DESIGN7 = {name: COMPARED[name] for name in ("baseline", *CANDIDATE_7_VARIANTS)}
 # Chosen on the design seeds: candidate 7 (alpha_max 0.6, no speed fading): the jitter expert's jerk
@@ -433,6 +433,55 @@ def _expert_headroom_lines(records) -> list[str]:
             *rows]
 
 
+def _lift_successes(records, first: int, config: str) -> dict[str, int]:
+    """Successes of a configuration in each Lift / Fetch cell (sim x sigma) of the block starting at first."""
+    out = {}
+    for r in records:
+        if r["config"] == config and r["scene"] != "libero_spatial" and first <= r["seed"] < first + 20 \
+                and r["backbone"].startswith(("lift sigma", "fetch sigma")):
+            out[r["backbone"]] = out.get(r["backbone"], 0) + int(r["success"])
+    return out
+
+
+def candidate10_verdict(records, learned, seeds, expert_names, lift_first: int) -> tuple[list[str], bool | None]:
+    """Candidate 10 against the shipped default (and baseline) on one block: rows and the rule's verdict
+    (DESIGN10's comment), or None when a cell of the block is missing."""
+    recs, lrecs = _block(records, seeds), _block(list(learned), seeds)
+    rows, ok, pool = [], True, []
+    for b in expert_names:
+        for base in ("baseline", CANDIDATE_6):
+            p = paired(recs, CANDIDATE_10, b, base)
+            if p["n"] < FULL_CELL:
+                return rows, None
+            rows.append(paired_row(f"{b} / candidate 10 vs {base}", p))
+            ok &= base == "baseline" or p["won"] - p["lost"] >= -1
+    for b in dict.fromkeys(r["backbone"] for r in lrecs if r["config"] == CANDIDATE_10):
+        for base in ("baseline", CANDIDATE_6):
+            p = paired(lrecs, CANDIDATE_10, b, base)
+            if p["n"] < FULL_CELL:
+                return rows, None
+            rows.append(paired_row(f"{b} / candidate 10 vs {base}", p))
+            if base == CANDIDATE_6:
+                ok &= p["won"] - p["lost"] >= -1
+                by = {(r["config"], r["task_id"], r["seed"]): r["success"] for r in lrecs if r["backbone"] == b}
+                pool += [float(by[(CANDIDATE_10, t, s_)]) - float(by[(CANDIDATE_6, t, s_)])
+                         for (c, t, s_) in by if c == CANDIDATE_10 and (CANDIDATE_6, t, s_) in by]
+    if not pool:
+        return rows, None
+    mean, half = float(np.mean(pool)), 1.96 * float(np.std(pool, ddof=1)) / np.sqrt(len(pool))
+    rows.append(f"| learned ACTs pooled / candidate 10 vs {CANDIDATE_6} | {len(pool)} | | | {mean * 100:+.1f} pp "
+                f"[{(mean - half) * 100:+.1f}, {(mean + half) * 100:+.1f}] | {sum(d > 0 for d in pool)} / "
+                f"{sum(d < 0 for d in pool)} / | | |")
+    ok &= mean - half > 0
+    cand, ref = _lift_successes(records, lift_first, CANDIDATE_10), _lift_successes(records, lift_first, CANDIDATE_6)
+    if set(cand) != {"lift sigma=0.00", "lift sigma=0.40", "fetch sigma=0.00", "fetch sigma=0.40"} or set(ref) != set(cand):
+        return rows, None
+    rows.append(f"| Lift / Fetch seeds {lift_first}-{lift_first + 19} / candidate 10 vs {CANDIDATE_6} (successes of 20) | | | | "
+                + ", ".join(f"{k}: {cand[k]} vs {ref[k]}" for k in sorted(cand)) + " | | | |")
+    ok &= all(cand[k] >= ref[k] - 1 for k in cand)
+    return rows, ok
+
+
 def report(out, records, secs, n_units, header, write, learned=()) -> None:
     """eval/results/efficacy/README.md: the screen, both blocks paired against baseline, Lift/Fetch."""
     lines = header("Efficacy: per-correction ablation, the shipped default vs baseline, temporal and the paper's "
@@ -510,6 +559,21 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                   f"on init states 35-39 with fresh failure draws (seed + {FRESH_DRAWS}; `+{FRESH_DRAWS}` in the "
                   "name), n = 50 per cell, the shipped default beside it; no decision looked at these episodes "
                   "(the clean expert's are section 3g's, candidate 9 new on them)\n", *PAIRED_HEAD, *rows]
+    for title, seeds, experts, first in (
+            ("design seeds (LIBERO init states 0-4, Lift / Fetch 7-26)", DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN),
+            ("confirmation (experts on init states 35-39 with fresh draws, the learned ACTs on 5-9, Lift / Fetch "
+             "100-119; no decision about it looked at these)", None, tuple(CONFIRM9_BACKBONES), LIFT_CONFIRM)):
+        if seeds is None:  # the experts' and the learned ACTs' confirmation blocks differ
+            rows, ok = candidate10_verdict([r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
+                                           [r for r in learned if r["seed"] in CONFIRM_SEEDS], range(0, 50), experts, first)
+        else:
+            rows, ok = candidate10_verdict(records, learned, seeds, experts, first)
+        if rows:
+            verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
+            lines += ["", f"## 3i. Candidate 10 (the shipped default + the release assist at 4 cm), {title}: {verdict} "
+                      "the rule written before it ran (eval/efficacy.py DESIGN10: pooled over the learned ACTs an "
+                      "interval above 0 against the shipped default, no backbone losing more than 1 pair net against "
+                      "it, Lift / Fetch within 1 of 20 of it)\n", *PAIRED_HEAD, *rows]
     lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
     if lift:
         lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",
