@@ -57,7 +57,10 @@ CANDIDATE_3 = "default, redirect_tol=0.015"
 # single-step ACT its place redirection, which steered the held object onto the target's exact
 # centre for the whole place phase, cost 30 pp (section 7). Its units ran as "default", renamed.
 DEFAULT_V2 = "default v2"
-V2 = PRESETS["default"].replace(place_rule="redirect", redirect_tol_m=0.0, veto_reopen=True, release_carry=False)
+# candidate 6 (the shipped default from 2026-11-24 until candidate 10), frozen: the earlier candidates
+# are written as changes of it, and its units on disk keep matching it whatever the preset becomes
+DEFAULT_6 = PRESETS["default"].replace(release_assist_m=0.0)
+V2 = DEFAULT_6.replace(place_rule="redirect", redirect_tol_m=0.0, veto_reopen=True, release_carry=False)
 # candidate 4, the third shipped default (v2 with the release veto in place of the redirection). Its
 # units first ran as "default, release_veto=0.02", were renamed "default" when it shipped and
 # "default v3" when candidate 5 replaced it.
@@ -73,7 +76,7 @@ CANDIDATE_5 = "default v4"
 # object is set down, holds the hand from rising, steers to half the tolerance). Designed from five
 # traced design-block episodes of the place-bias expert where the clean expert succeeds and the
 # release veto failed (docs/method.md); on those and six more such pairs it rescued 8 of 11
-# (the shipped default since; its units ran as "default, release_carry" and were renamed "default")
+# (the shipped default until candidate 10 on 2026-11-25; its units ran as "default, release_carry" and were renamed "default")
 CANDIDATE_6 = "default"
 CANDIDATE_7 = "default + target low-pass"
 CANDIDATE_8 = "default + target low-pass, rough 0.12-0.25"
@@ -129,22 +132,22 @@ COMPARED = {
     # the design block after candidate 3 still held the weak siblings in place (their release point
     # lies beyond 0.015 m): the place-bias experts succeed 70-75 % below 0.02 m of bias, 10-40 %
     # from 0.02 to 0.03 m and never beyond
-    CANDIDATE_4: PRESETS["default"].replace(veto_reopen=True, release_carry=False),
-    CANDIDATE_5: PRESETS["default"].replace(release_carry=False),
-    CANDIDATE_6: PRESETS["default"],
+    CANDIDATE_4: DEFAULT_6.replace(veto_reopen=True, release_carry=False),
+    CANDIDATE_5: DEFAULT_6.replace(release_carry=False),
+    CANDIDATE_6: DEFAULT_6,
     # candidate 7: the shipped default with the adaptive low-pass in target space (the commanded
     # position filtered, not the increment: core/lowpass.py), built from the traced design-block
     # losses of the increment low-pass (candidate 1: the jitter expert's grasp approach stalled short
     # of the grasp point, 11 of its 12 lost pairs on 0-4 and 5-9 never lifted the object)
-    CANDIDATE_7: PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.6),
-    CANDIDATE_7 + ", alpha_max=0.8": PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target",
+    CANDIDATE_7: DEFAULT_6.replace(lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.6),
+    CANDIDATE_7 + ", alpha_max=0.8": DEFAULT_6.replace(lowpass="adaptive", lowpass_space="target",
                                                                  lowpass_alpha_max=0.8),
     # the same with the smoothing fading out at the policy's intended speed (lowpass_speed_hi = 1
     # action unit per step, a delta layout's bound): the target-space filter trailed Fetch's fast
     # transport moves and its 50-step episodes ran out before the place phase (design seeds 7-26)
-    CANDIDATE_7 + ", speed_hi=1": PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target",
+    CANDIDATE_7 + ", speed_hi=1": DEFAULT_6.replace(lowpass="adaptive", lowpass_space="target",
                                                               lowpass_alpha_max=0.6, lowpass_speed_hi=1.0),
-    CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1": PRESETS["default"].replace(
+    CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1": DEFAULT_6.replace(
         lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.8, lowpass_speed_hi=1.0),
     # after candidate 7's confirmation (its cost fell on the clean expert and the weak ACTs): a
     # roughness band that leaves a competent policy alone. Measured on the design block (init
@@ -152,10 +155,10 @@ COMPARED = {
     # 0.019 at the median, 0.049 / 0.104 at the 75th / 90th percentile (stage switches), the jitter
     # expert's 0.22 / 0.27 / 0.32 at the 25th / 50th / 75th. Design-block evidence only: every
     # expert block but 40-49 (untouched) has been looked at
-    CANDIDATE_8: PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.6,
+    CANDIDATE_8: DEFAULT_6.replace(lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.6,
                                             lowpass_rough_lo=0.12, lowpass_rough_hi=0.25),
-    CANDIDATE_9: PRESETS["default"].replace(phase_caps=(0.0, 0.05, 0.0, 1.0)),
-    CANDIDATE_10: PRESETS["default"].replace(release_assist_m=0.04),
+    CANDIDATE_9: DEFAULT_6.replace(phase_caps=(0.0, 0.05, 0.0, 1.0)),
+    CANDIDATE_10: DEFAULT_6.replace(release_assist_m=0.04),
     "temporal": PhysVLAConfig(mode="temporal"),
     "paper (eq. 2, c=0.05)": PRESETS["paper"],
     "paper Alg. 1 (c=1)": PRESETS["paper_alg1"],
@@ -570,10 +573,11 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
             rows, ok = candidate10_verdict(records, learned, seeds, experts, first)
         if rows:
             verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
-            lines += ["", f"## 3i. Candidate 10 (the shipped default + the release assist at 4 cm), {title}: {verdict} "
-                      "the rule written before it ran (eval/efficacy.py DESIGN10: pooled over the learned ACTs an "
-                      "interval above 0 against the shipped default, no backbone losing more than 1 pair net against "
-                      "it, Lift / Fetch within 1 of 20 of it)\n", *PAIRED_HEAD, *rows]
+            lines += ["", f"## 3i. Candidate 10 (candidate 6 + the release assist at 4 cm; the shipped default since "
+                      f"2026-11-25), {title}: {verdict} the rule written before it ran (eval/efficacy.py DESIGN10: pooled "
+                      "over the learned ACTs an interval above 0 against candidate 6, named `default` here, the shipped "
+                      "default until then; no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of "
+                      "20 of it)\n", *PAIRED_HEAD, *rows]
     lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
     if lift:
         lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",

@@ -410,9 +410,15 @@ def learned(args) -> None:
     unknown = [p for p in presets if p not in PRESETS]
     if unknown:
         raise SystemExit(f"experiments: unknown preset(s) {unknown}; choose from {', '.join(PRESETS)}")
-    configs = {**{m: PhysVLAConfig(mode=m) for m in modes}, **{p: PRESETS[p] for p in presets}}
+    import efficacy as ef
+
+    # a preset's units carry the name the efficacy stages give its configuration (the shipped default
+    # is one of the candidates there), so a preset whose configuration changed never reuses the units
+    # its former self ran, and the learned table and the efficacy report share them
+    named = [next((k for k, c in ef.COMPARED.items() if k != "baseline" and c == PRESETS[p]), p) for p in presets]
+    configs = {**{m: PhysVLAConfig(mode=m) for m in modes}, **{k: PRESETS[p] for k, p in zip(named, presets)}}
     weak = {*train_backbones.SIBLINGS, *train_backbones.CONTINUED}
-    modes_of = {n: [*(weak_modes if n in weak else modes), *presets] for n in names}
+    modes_of = {n: [*(weak_modes if n in weak else modes), *named] for n in names}
     units = [
         Unit(n, m, configs[m].to_dict(), t, s, k, policy=str(ckpts[n].resolve()))
         for n in names for m in modes_of[n] for t in range(10) for s, k in seed_blocks(args.per_task, args.block)
@@ -451,11 +457,11 @@ def learned(args) -> None:
                        "noise 0.1 and 0.3 on the executed x, y actions, successful episodes only) from init states "
                        "10-39 (policies/record_dataset.py); evaluated on init states 0 .. per-task - 1, which no "
                        "training or checkpoint choice used. Success is LIBERO's own check; rates with 95 % Wilson "
-                       "intervals."))
+                       "intervals." + "".join(f" Preset `{p}` runs as `{k}` (its name in eval/efficacy.py)." for p, k in
+                                              zip(presets, named) if k != p)))
     if provenance:
         lines += ["## Checkpoints\n", "| backbone | recipe | checkpoint (step) | trained on | minutes | data | commit |",
                   "|---|---|---|---|---|---|---|", *provenance, ""]
-    import efficacy as ef
 
     paired = [ef.paired_row(f"{n} / {m}", ef.paired(records, m, n)) for n, m in rows if m != "baseline"]
     left_out = [f"{n} / {m}" for n in names for m in modes_of[n] if (n, m) not in agg]

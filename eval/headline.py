@@ -21,7 +21,7 @@ from lerobot_physvla import metrics
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "eval" / "results"
 START, END = "<!-- headline:start -->", "<!-- headline:end -->"
-MODES = ("baseline", "temporal", "phys", "phys_el", "default")
+MODES = ("baseline", "temporal", "phys", "phys_el", "default", "default + release assist")  # the last: the shipped default since candidate 10, by its eval/efficacy.py name
 
 
 def _records(name: str) -> list[dict] | None:
@@ -105,9 +105,25 @@ def efficacy_table() -> list[str]:
     if not recs:
         return []
     lines = []
-    for seeds, what in ((ef.CONFIRM7_SEEDS, "init states 35-39, a second block no decision looked at for the "
-                                            "shipped default (and candidate 7's confirmation block)"),
-                        (ef.CONFIRM6_SEEDS, "init states 30-34, the shipped default's confirmation block (no "
+    fresh = [r for r in recs if r["backbone"] in ef.CONFIRM9_BACKBONES and r["seed"] in ef.CONFIRM9_SEEDS
+             and r["config"] in ("baseline", ef.CANDIDATE_6, ef.CANDIDATE_10)]
+    if sum(r["config"] == ef.CANDIDATE_10 for r in fresh) >= 50 * len(ef.CONFIRM9_BACKBONES):
+        lines += ["**LIBERO-Spatial, init states 35-39 with fresh failure draws (seed + 1000), the shipped default's "
+                  "(candidate 10, `default + release assist`) confirmation block for the experts; no decision looked "
+                  "at these episodes (10 tasks, n = 50 pairs per cell)** ([eval/results/efficacy]"
+                  "(eval/results/efficacy/README.md) section 3i): success; paired difference against baseline "
+                  "[95 % CI]; jerk relative to baseline's\n",
+                  f"| backbone | baseline | {ef.CANDIDATE_6} (candidate 6) | {ef.CANDIDATE_10} |", "|---|---|---|---|"]
+        for b in ef.CONFIRM9_BACKBONES:
+            ps = [ef.paired(fresh, c, b) for c in (ef.CANDIDATE_6, ef.CANDIDATE_10)]
+            cells = [f"{p['success']:.0%} ({p['diff'] * 100:+.0f} pp [{p['ci'][0] * 100:+.0f}, "
+                     f"{p['ci'][1] * 100:+.0f}]; jerk x{p['jerk_ratio']:.2f})" for p in ps]
+            lines.append(f"| {b} | {ps[0]['base_success']:.0%} | " + " | ".join(cells) + " |")
+        lines.append("")
+    for seeds, what in ((ef.CONFIRM7_SEEDS, "init states 35-39, a second block no decision looked at for "
+                                            "candidate 6 (`default`, shipped until 2026-11-25; and candidate 7's "
+                                            "confirmation block)"),
+                        (ef.CONFIRM6_SEEDS, "init states 30-34, candidate 6's confirmation block (no "
                                             "decision looked at it)"),
                         (ef.CONFIRM5_SEEDS, "init states 25-29, default v4's confirmation block"),
                         (ef.CONFIRM4_SEEDS, "init states 20-24, default v3's confirmation block"),

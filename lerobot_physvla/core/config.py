@@ -334,18 +334,21 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # beyond the paper (docs/method.md): only corrections that are right from the state alone: the
     # gripper veto where no finger can reach the object (keeping an open gripper open, never opening
     # a closed one: it may hold the object), the release veto where the held object would land more
-    # than 2 cm off the target (kept in force while a carried object is set down: release_carry)
+    # than 2 cm off the target (kept in force while a carried object is set down: release_carry), and
+    # the release assist: a policy that holds the object still over the target, closed, is let go
+    # (candidate 10, shipped 2026-11-25: docs/method.md)
     "default": PhysVLAConfig(
         mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
         veto_reach_m=0.10, veto_reopen=False, place_rule="release_veto", redirect_tol_m=0.02, release_carry=True,
-        phase_ref="object",
+        phase_ref="object", release_assist_m=0.04,
     ),
 }
 # on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the
 # held object is within 2 cm of the target, flung blocks the simulated SO-101 carried at transport
 # speed (eval/results/so101_faults), so it stays off on arms until a rule that knows the object's
 # speed and height is measured.
-PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), place_rule="decelerate")
+PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), place_rule="decelerate",
+                                            release_assist_m=0.0)
 DEFAULT_PRESET = "default"
 ARM_PRESET = "arm"
 

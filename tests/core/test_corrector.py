@@ -327,3 +327,21 @@ def test_arrays_the_direct_call_cannot_take_go_in_steps_with_the_same_output():
     r2, e2 = stream_tick(a, flat, c2._fws, c2._iws, c2._bws)
     np.testing.assert_array_equal(r1, r2)
     assert e1 == e2
+
+
+def test_the_shipped_default_lets_go_of_a_still_hold_over_the_target_and_the_arm_preset_does_not():
+    """Candidate 10's traced failure (a weak chunked ACT holds the bowl 2 cm above the plate, still,
+    gripper closed, to the end): the default opens after assist_steps steps; `arm` never does."""
+    from lerobot_physvla.core.config import PRESETS
+
+    # the bowl carried to the plate: 2.1 cm above the plate's origin, 2.5 cm above its own rest
+    st = make_state(eef=(0.07, 0.15, 0.975), obj=(0.074, 0.19, 0.923), target=(0.066, 0.197, 0.902), lift=0.025)
+    hold = np.array([[0.01, 0.0, -0.01, 0.0, 0.0, 0.0, 0.87]])  # still, closed (robosuite: + = close)
+    for name, opens_at in (("default", PRESETS["default"].assist_steps), ("arm", None)):
+        c = Corrector(PRESETS[name])
+        grip = [c(hold, st)[0, 6] for _ in range(15)]
+        assert all(c.last.phase == Phase.PLACE)
+        if opens_at is None:
+            assert grip == [0.87] * 15, name
+        else:
+            assert grip[: opens_at - 1] == [0.87] * (opens_at - 1) and grip[opens_at - 1:] == [-1.0] * (16 - opens_at)
