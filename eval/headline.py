@@ -130,8 +130,8 @@ def efficacy_table() -> list[str]:
                         (ef.CONFIRM3_SEEDS, "init states 15-19, default v2's confirmation block"),
                         (ef.DESIGN_SEEDS, "init states 0-4, the design block")):
         block = [r for r in recs if r["scene"] == "libero_spatial" and r["seed"] in seeds]
-        configs = [c for c in ef.COMPARED if c != "baseline"
-                   and sum(r["config"] == c for r in block) >= 50 * len(ef.BACKBONES)]
+        configs = [c for c in ef.COMPARED if c != "baseline"  # every backbone's cell complete
+                   and all(sum(r["config"] == c and r["backbone"] == b for r in block) >= 50 for b in ef.BACKBONES)]
         if not configs:
             continue
         lines += [f"**LIBERO-Spatial, {what} (10 tasks, n = 50 pairs per cell)** "
