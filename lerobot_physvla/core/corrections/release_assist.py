@@ -19,8 +19,8 @@ makes is one the veto would let through.
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import (ASSIST_M, ASSIST_STEPS, GRIPPER, GRIPPER_OPEN, LIFT, METRES_PER_UNIT,
-                                                   OBJ, REDIRECT_TOL_M, STALL, TGT)
+from lerobot_physvla.core.corrections.base import (ASSIST_M, ASSIST_STEPS, GRIPPER, GRIPPER_OPEN, LIFT, OBJ,
+                                                   REDIRECT_TOL_M, STALL, TGT)
 
 STILL_U = 0.05  # the policy commands no motion: every position channel below this, action units
 SUPPORT_M = 0.05  # the target is a surface: within this of the object's resting height, metres
@@ -32,7 +32,9 @@ def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
     g = idx[GRIPPER]
     if g < 0:
         return
-    latched = mem[STALL] >= p[ASSIST_STEPS]
+    if mem[STALL] >= p[ASSIST_STEPS]:  # latched: open for as long as the phase stays place
+        a_phys[g] = p[GRIPPER_OPEN]
+        return
     closed = a_raw[g] * p[GRIPPER_OPEN] < 0.0
     tol = p[REDIRECT_TOL_M]
     ex, ey = geo[TGT] - geo[OBJ], geo[TGT + 1] - geo[OBJ + 1]
@@ -44,7 +46,7 @@ def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
             still = False
     stalled = (closed and still and ex * ex + ey * ey <= tol * tol and -tol <= dz <= p[ASSIST_M]
                and abs(geo[TGT + 2] - rest_z) <= SUPPORT_M)
-    if latched or (stalled and mem[STALL] + 1.0 >= p[ASSIST_STEPS]):
+    if stalled and mem[STALL] + 1.0 >= p[ASSIST_STEPS]:
         a_phys[g] = p[GRIPPER_OPEN]
     if commit:
-        mem[STALL] = mem[STALL] if latched else (mem[STALL] + 1.0 if stalled else 0.0)
+        mem[STALL] = mem[STALL] + 1.0 if stalled else 0.0
