@@ -33,6 +33,8 @@ the 30-50 % band #9 asks for; the `_mid` siblings (`CONTINUED`, `CPU_DRAW`, `MID
     .venv/bin/python policies/train_backbones.py act_single --out outputs/train/cpu_full
     .venv/bin/python policies/train_backbones.py act_chunk --out outputs/train/cpu_full   # act_chunk_mid2
     .venv/bin/python policies/train_backbones.py act_chunk_mid2   # resumes that run from 7200 (RESUMED)
+    .venv/bin/python policies/train_backbones.py act_chunk_small --out outputs/train/cpu_full  # SMALLER
+    .venv/bin/python policies/train_backbones.py act_chunk_tiny --out outputs/train/cpu_full
     .venv/bin/python eval/experiments.py learned_mid --learned act_single_mid,act_chunk_mid,act_chunk_mid2
 
 Normalisation: lerobot 0.6.1's ACT and Diffusion configs normalise only the VISUAL, STATE and
@@ -126,7 +128,20 @@ CPU_DRAW: dict[str, tuple[str, tuple[int, ...]]] = {
 # name -> (recipe whose CPU_DRAW run is resumed, from step, to step, save every)
 RESUMED: dict[str, tuple[str, int, int, int]] = {"act_chunk_mid2": ("act_chunk", 7200, 9600, 400)}
 RESUMED_SUFFIX = "_fine"  # the resumed run's directory: <CPU_DRAW_DIR>/<recipe>_fine
-MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW, *RESUMED]))  # every `_mid` sibling
+# Fourth round for act_chunk_mid2: the resumed run's checkpoints went 18, 2, 4, 4, 62 % (7600 .. 9200):
+# at act_chunk's size the policy learns to let go of the bowl within ~400 updates, in most tasks at
+# once, so no checkpoint of such a run sits in the band. A smaller model instead (#9 allows "an
+# earlier checkpoint or a smaller model"): act_chunk's recipe (same data, seed, chunk, steps) with a
+# narrower transformer, run whole on this CPU (`train_backbones.py <name> --out outputs/train/cpu_full`);
+# every checkpoint is a candidate. Fixed before any of them was trained; the same rule keeps one of
+# all candidates of every round.
+# smaller recipe -> (the recipe it shrinks, the lerobot-train arguments that replace the recipe's)
+SMALLER: dict[str, tuple[str, tuple[str, ...]]] = {
+    "act_chunk_small": ("act_chunk", ("--policy.dim_model=64", "--policy.dim_feedforward=256")),
+    "act_chunk_tiny": ("act_chunk", ("--policy.dim_model=32", "--policy.n_heads=2", "--policy.dim_feedforward=128")),
+}
+SMALLER_OF: dict[str, tuple[str, ...]] = {"act_chunk_mid2": ("act_chunk_small", "act_chunk_tiny")}
+MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW, *RESUMED, *SMALLER_OF]))  # every `_mid` sibling
 CPU_DRAW_DIR = "cpu_full"  # where, under the training root, the whole CPU runs are
 # name -> the kept candidate: (its run's directory under the training root, step), as
 # eval/results/learned_mid chose it (a test recomputes the choice from that file's units). A sibling
@@ -153,6 +168,9 @@ def mid_candidates(name: str, out_root: str = "outputs/train") -> dict[str, Path
         run = Path(out_root) / CPU_DRAW_DIR / (recipe + RESUMED_SUFFIX)
         for step in range(start + every, stop, every):
             found[f"{recipe}{RESUMED_SUFFIX}@{step:06d}"] = run / "checkpoints" / f"{step:06d}" / "pretrained_model"
+    for small in SMALLER_OF.get(name, ()):
+        for p in sorted((Path(out_root) / CPU_DRAW_DIR / small / "checkpoints").glob("[0-9]*/pretrained_model")):
+            found[f"{small}@{p.parent.name}"] = p
     return {k: p for k, p in found.items() if (p / "model.safetensors").exists()}
 
 
@@ -174,7 +192,13 @@ def command(name: str, dataset: str, out_root: str, steps: int | None = None, de
 
     raw_env: the recipe as it was before the normalisation fix (no ENV entry: lerobot's default
     leaves observation.environment_state raw), written to <recipe>_rawenv; measures the fix."""
-    args, n = RECIPES[name]
+    if name in SMALLER:  # the recipe it shrinks, with the named arguments replaced
+        recipe, narrower = SMALLER[name]
+        args, n = RECIPES[recipe]
+        keys = {a.split("=", 1)[0] for a in narrower}
+        args = [a for a in args if a.split("=", 1)[0] not in keys] + list(narrower)
+    else:
+        args, n = RECIPES[name]
     n = n if steps is None else steps
     if raw_env:
         args = [a.replace('"ENV": "MEAN_STD", ', "").replace('"ENV": "MIN_MAX", ', "") for a in args]
@@ -304,7 +328,7 @@ def train(name: str, dataset: str, out_root: str, steps: int | None = None, devi
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("recipe", nargs="?", choices=[*RECIPES, *CONTINUED, *RESUMED, "all"], default="all",
+    ap.add_argument("recipe", nargs="?", choices=[*RECIPES, *SMALLER, *CONTINUED, *RESUMED, "all"], default="all",
                     help="a recipe, a `_mid` sibling that continues a committed checkpoint or resumes a CPU run, "
                          "or all recipes")
     ap.add_argument("--dataset", default=DATASET)

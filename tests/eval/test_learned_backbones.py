@@ -33,6 +33,16 @@ def test_every_recipe_is_state_only_seeded_and_cpu():
         assert changed == {"--policy.device=cpu", "--policy.device=cuda", "--num_workers=0", "--num_workers=3"}
 
 
+def test_a_smaller_recipe_is_its_recipe_with_only_the_named_sizes_replaced():
+    for small, (recipe, narrower) in train_backbones.SMALLER.items():
+        mine, theirs = train_backbones.command(small, "ds", "out"), train_backbones.command(recipe, "ds", "out")
+        keys = {a.split("=", 1)[0] for a in narrower}
+        assert [a.split("=", 1)[0] for a in mine].count("--policy.dim_model") == 1  # no argument named twice
+        assert set(narrower) <= set(mine) and not set(narrower) & set(theirs)
+        named = {"--output_dir", "--job_name", *keys}
+        assert {a for a in mine if a.split("=", 1)[0] not in named} == {a for a in theirs if a.split("=", 1)[0] not in named}
+
+
 def test_weak_siblings_are_earlier_checkpoints_of_a_recipe():
     for weak, (recipe, step) in train_backbones.SIBLINGS.items():
         steps = train_backbones.RECIPES[recipe][1]
@@ -201,8 +211,8 @@ def test_the_committed_checkpoints_are_the_weights_the_published_table_ran():
         assert ran == {sha}, name
         recipe = json.loads((ckpt / "recipe.json").read_text())
         if name in train_backbones.MID_CHOICE:  # trained here: the continued run, or the recipe's CPU draw
-            drawn = train_backbones.CPU_DRAW.get(name, ("",))[0]
-            assert recipe["recipe"] in (name, drawn) and "CPU" in recipe["device"]
+            drawn = (train_backbones.CPU_DRAW.get(name, ("",))[0], *train_backbones.SMALLER_OF.get(name, ()))
+            assert recipe["recipe"] in (name, *drawn) and "CPU" in recipe["device"]
             continue
         assert recipe["recipe"] == train_backbones.SIBLINGS.get(name, (name,))[0] and "cuda" in recipe["device"]
     scene = LiberoScene("libero_spatial", 0)
@@ -233,7 +243,8 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
         continued, drawn = train_backbones.CONTINUED.get(name), train_backbones.CPU_DRAW.get(name)
         resumed = train_backbones.RESUMED.get(name)
         prefixes = (([f"{name}@"] if continued else []) + ([f"{drawn[0]}_cpufull@"] if drawn else [])
-                    + ([f"{resumed[0]}{train_backbones.RESUMED_SUFFIX}@"] if resumed else []))
+                    + ([f"{resumed[0]}{train_backbones.RESUMED_SUFFIX}@"] if resumed else [])
+                    + [f"{small}@" for small in train_backbones.SMALLER_OF.get(name, ())])
         rate, sha = {}, {}
         for u in sorted(units.glob("*__baseline__*.json")):
             cand = u.name.split("__")[0]
@@ -242,7 +253,8 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
                 rate.setdefault(cand, []).extend(r["success"] for r in payload["records"])
                 sha[cand] = payload["policy_sha256"]
         steps = ((continued[1] // continued[2] if continued else 0) + (len(drawn[1]) if drawn else 0)
-                 + ((resumed[2] - resumed[1]) // resumed[3] - 1 if resumed else 0))
+                 + ((resumed[2] - resumed[1]) // resumed[3] - 1 if resumed else 0)
+                 + train_backbones.CHECKPOINTS_PER_RUN * len(train_backbones.SMALLER_OF.get(name, ())))
         assert len(rate) == steps and all(len(v) == 50 for v in rate.values()), name
         kept = train_backbones.choose_mid({c: float(np.mean(v)) for c, v in rate.items()})
         if run is None:  # the rule's pick is outside the band: no backbone of that name
