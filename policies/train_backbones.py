@@ -35,6 +35,8 @@ the 30-50 % band #9 asks for; the `_mid` siblings (`CONTINUED`, `CPU_DRAW`, `MID
     .venv/bin/python policies/train_backbones.py act_chunk_mid2   # resumes that run from 7200 (RESUMED)
     .venv/bin/python policies/train_backbones.py act_chunk_small --out outputs/train/cpu_full  # SMALLER
     .venv/bin/python policies/train_backbones.py act_chunk_tiny --out outputs/train/cpu_full
+    .venv/bin/python policies/train_backbones.py act_chunk_w96 --out outputs/train/cpu_full   # fifth round
+    .venv/bin/python policies/train_backbones.py act_chunk_w112 --out outputs/train/cpu_full
     .venv/bin/python eval/experiments.py learned_mid --learned act_single_mid,act_chunk_mid,act_chunk_mid2
 
 Normalisation: lerobot 0.6.1's ACT and Diffusion configs normalise only the VISUAL, STATE and
@@ -135,12 +137,23 @@ RESUMED_SUFFIX = "_fine"  # the resumed run's directory: <CPU_DRAW_DIR>/<recipe>
 # narrower transformer, run whole on this CPU (`train_backbones.py <name> --out outputs/train/cpu_full`);
 # every checkpoint is a candidate. Fixed before any of them was trained; the same rule keeps one of
 # all candidates of every round.
-# smaller recipe -> (the recipe it shrinks, the lerobot-train arguments that replace the recipe's)
-SMALLER: dict[str, tuple[str, tuple[str, ...]]] = {
-    "act_chunk_small": ("act_chunk", ("--policy.dim_model=64", "--policy.dim_feedforward=256")),
-    "act_chunk_tiny": ("act_chunk", ("--policy.dim_model=32", "--policy.n_heads=2", "--policy.dim_feedforward=128")),
+# Fifth round: the two smaller models' checkpoints all landed at 0-22 % on init states 5-9 (none in the
+# band): at dim_model 64 the chunked ACT stays weak throughout, at 128 it reaches 68-70 %. Between
+# them, fixed before any trained: widths 96 and 112 (feedforward 4x, 4 heads), their final checkpoint
+# only (a converged model of limited capacity, not a checkpoint caught inside the jump). The same rule
+# keeps one of all candidates of every round.
+# smaller recipe -> (the recipe it shrinks, the lerobot-train arguments that replace the recipe's,
+# the steps of its run that are candidates)
+SMALLER: dict[str, tuple[str, tuple[str, ...], tuple[int, ...]]] = {
+    "act_chunk_small": ("act_chunk", ("--policy.dim_model=64", "--policy.dim_feedforward=256"),
+                        (2400, 4800, 7200, 9600, 12000)),
+    "act_chunk_tiny": ("act_chunk", ("--policy.dim_model=32", "--policy.n_heads=2", "--policy.dim_feedforward=128"),
+                       (2400, 4800, 7200, 9600, 12000)),
+    "act_chunk_w96": ("act_chunk", ("--policy.dim_model=96", "--policy.dim_feedforward=384"), (12000,)),
+    "act_chunk_w112": ("act_chunk", ("--policy.dim_model=112", "--policy.dim_feedforward=448"), (12000,)),
 }
-SMALLER_OF: dict[str, tuple[str, ...]] = {"act_chunk_mid2": ("act_chunk_small", "act_chunk_tiny")}
+SMALLER_OF: dict[str, tuple[str, ...]] = {"act_chunk_mid2": ("act_chunk_small", "act_chunk_tiny", "act_chunk_w96",
+                                                             "act_chunk_w112")}
 MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW, *RESUMED, *SMALLER_OF]))  # every `_mid` sibling
 CPU_DRAW_DIR = "cpu_full"  # where, under the training root, the whole CPU runs are
 # name -> the kept candidate: (its run's directory under the training root, step), as
@@ -169,8 +182,9 @@ def mid_candidates(name: str, out_root: str = "outputs/train") -> dict[str, Path
         for step in range(start + every, stop, every):
             found[f"{recipe}{RESUMED_SUFFIX}@{step:06d}"] = run / "checkpoints" / f"{step:06d}" / "pretrained_model"
     for small in SMALLER_OF.get(name, ()):
-        for p in sorted((Path(out_root) / CPU_DRAW_DIR / small / "checkpoints").glob("[0-9]*/pretrained_model")):
-            found[f"{small}@{p.parent.name}"] = p
+        run = Path(out_root) / CPU_DRAW_DIR / small / "checkpoints"
+        for step in SMALLER[small][2]:
+            found[f"{small}@{step:06d}"] = run / f"{step:06d}" / "pretrained_model"
     return {k: p for k, p in found.items() if (p / "model.safetensors").exists()}
 
 
@@ -193,7 +207,7 @@ def command(name: str, dataset: str, out_root: str, steps: int | None = None, de
     raw_env: the recipe as it was before the normalisation fix (no ENV entry: lerobot's default
     leaves observation.environment_state raw), written to <recipe>_rawenv; measures the fix."""
     if name in SMALLER:  # the recipe it shrinks, with the named arguments replaced
-        recipe, narrower = SMALLER[name]
+        recipe, narrower, _ = SMALLER[name]
         args, n = RECIPES[recipe]
         keys = {a.split("=", 1)[0] for a in narrower}
         args = [a for a in args if a.split("=", 1)[0] not in keys] + list(narrower)
