@@ -146,19 +146,32 @@ def _noop_step(tr: dict) -> torch.Tensor:
     return torch.from_numpy(a.numpy().astype(np.float64).astype(np.float32))
 
 
+# the path as it was before the recorder's row was written inside the compiled tick: the same step and
+# recorder, the row copied array by array in Python after the call (what any second listener causes)
+COPIED = "B=1, row copied in Python"
+
+
+def _no_listener(*args) -> None:
+    return None
+
+
 def whole_path(episodes: int, steps: int, warm_repeats: int = 3) -> dict:
     """Whole-path timings per env-step, live in the env loop (see the module doc). Right after
-    each env step one path runs first (cold), in turn: B = 1, B = 8, the no-op; then every path
+    each env step one path runs first (cold), in turn: B = 1, B = 8, the no-op, B = 1 with the row
+    copied in Python; then every path
     runs warm_repeats times back to back."""
     task = libero_sim.load_task("libero_spatial", 0)
     env = libero_sim.make_libero_env(task)
     cfg = PhysVLAConfig(mode="phys_el").to_dict()
     steps_of = {}
-    for b in (1, 8):
-        cap, cor = PhysVLAStateCaptureStep(bus=f"bench{b}"), PhysVLACorrectorStep(config=cfg, bus=f"bench{b}")
+    for path in ("B=1", "B=8", COPIED):
+        bus = f"bench-{path}"
+        cap, cor = PhysVLAStateCaptureStep(bus=bus), PhysVLACorrectorStep(config=cfg, bus=bus)
         cor.listeners.append(EpisodeRecorder())  # diagnostics included, as in lerobot-eval
-        steps_of[b] = (cap, cor)
-    paths = ("B=1", "B=8", "no-op B=1")
+        if path == COPIED:  # a second listener: the step copies the recorder's row in Python after the call
+            cor.listeners.append(_no_listener)
+        steps_of[path] = (cap, cor)
+    paths = ("B=1", "B=8", "no-op B=1", COPIED)
     res = {(kind, p): {"read": [], "capture": [], "step": []} for kind in ("live", "warm") for p in paths}
     expert = PickPlaceExpert()
     clock = time.perf_counter
@@ -180,7 +193,7 @@ def whole_path(episodes: int, steps: int, warm_repeats: int = 3) -> dict:
             out = _noop_step({TransitionKey.ACTION: act})
             t4 = clock()
         else:
-            cap, cor = steps_of[b]
+            cap, cor = steps_of[path]
             t2 = clock()
             cap(tr)
             t3 = clock()
@@ -190,6 +203,8 @@ def whole_path(episodes: int, steps: int, warm_repeats: int = 3) -> dict:
 
     k = 0
     for ep in range(episodes):
+        for _, cor in steps_of.values():  # as lerobot-eval's hook before each rollout: compact outside the ticks
+            cor.listeners[0].end_batch()
         libero_sim.reset_to_init_state(env, task, ep)
         src = RobosuiteStateSource(env.env)
         src.reset()
@@ -357,7 +372,8 @@ def cold_floor(rows: np.ndarray, actions: np.ndarray, repeats: int = 300) -> dic
     junk = np.ones(8_000_000)
     arrays = [np.zeros((2, 3)) for _ in range(21)]
     a32 = a.astype(np.float32)
-    direct = direct_entry(stream_tick, a32, flat, c._fws, c._iws, c._bws)
+    none = np.zeros((0, 0, 0))  # no recording arena
+    direct = direct_entry(stream_tick, a32, flat, c._fws, c._iws, c._bws, none, 0)
     pieces = {"trivial compiled call": lambda: _trivial(a),
               "trivial compiled call, 8 array arguments": lambda: _trivial8(a, *arrays[:7]),
               "trivial compiled call, 21 array arguments": lambda: _trivial21(a, *arrays[:20]),
@@ -365,9 +381,9 @@ def cold_floor(rows: np.ndarray, actions: np.ndarray, repeats: int = 300) -> dic
               "float32 cast + torch.from_numpy": lambda: torch.from_numpy(a.astype(np.float32)),
               "corrector tick (correct_packed)": lambda: c.correct_packed(a, flat),
               "corrector stream tick (correct_stream, float32 in and out)": lambda: c.correct_stream(a32, flat),
-              "stream_tick through numba's dispatch": lambda: stream_tick(a32, flat, c._fws, c._iws, c._bws),
+              "stream_tick through numba's dispatch": lambda: stream_tick(a32, flat, c._fws, c._iws, c._bws, none, 0),
               "stream_tick's compiled overload called directly (what correct_stream calls)":
-                  lambda: direct(a32, flat, c._fws, c._iws, c._bws)}
+                  lambda: direct(a32, flat, c._fws, c._iws, c._bws, none, 0)}
     out = {}
     for name, fn in pieces.items():
         fn()
@@ -469,9 +485,11 @@ def main() -> None:
         "State read + capture step + corrector step with lerobot-eval's EpisodeRecorder, on torch tensors as lerobot "
         "hands them over. *live*: right after each real env step (caches cold, as in a rollout); *warm*: three more "
         "times back to back on the same inputs. B = 8: eight reads + (capture + step) / 8 per env. No-op: the same "
-        "tensor conversions (state tensor to numpy, action tensor to numpy and back), no state read, no correction. Right after each env step one path runs "
-        "first, in turn (B = 1, B = 8, no-op): each live row holds a third of the steps. p99 excludes each run's "
-        "first call (next section).\n",
+        "tensor conversions (state tensor to numpy, action tensor to numpy and back), no state read, no correction. "
+        f"*{COPIED}*: B = 1 with the recorder's row copied array by array in Python after the corrector's call (as "
+        "before the compiled tick wrote it; what any second listener on the step still causes). Right after each env "
+        "step one path runs first, in turn (B = 1, B = 8, no-op, row copied): each live row holds a quarter of the "
+        "steps. p99 excludes each run's first call (next section).\n",
         "| path | p50 total (us) | p99 total (us) | p50 read (us) | p50 capture (us) | p50 corrector step (us) | "
         "total / no-op | total / env step |",
         "|---|---|---|---|---|---|---|---|",

@@ -4,8 +4,10 @@
 splits the stream into episodes per env with the state's own step counter. For each episode it
 keeps the raw and corrected actions, the action the simulator actually executed (echoed back by
 the env one step later), the phase timeline, residuals, pass-through reasons and timings, and
-computes the metrics of `metrics.py`. Recording is a few array copies per control step into
-growable arrays (no per-env Python work, no unpacking); episodes are split when read, and when
+computes the metrics of `metrics.py`. Recording is one row per control step in a growable
+arena, written by the corrector's compiled tick where the recorder is the step's one listener
+(`slot` / `commit`), else copied in a few array assignments (`__call__`); no per-env Python work,
+no unpacking. Episodes are split when read, and when
 every env restarts together (lerobot-eval's next rollout batch) the finished batch is reduced
 to its records and the rows are reused, so memory does not grow with the number of steps.
 `write(dir)` saves
@@ -29,7 +31,7 @@ from lerobot_physvla import metrics
 from lerobot_physvla.report import corrections_by_phase, phase_timeline
 from lerobot_physvla.core.phase import PHASE_NAMES
 from lerobot_physvla.core.state import REASONS
-from lerobot_physvla.core.tick import D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, D_W_SUM
+from lerobot_physvla.core.tick import D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, D_W_SUM, REC_HEADER
 
 
 class _Episode:
@@ -178,9 +180,15 @@ def _nanpct(x, q) -> float | None:
 
 
 class _Segment:
-    """Per-call rows of one batch size, in growable arrays (capacity doubles when full)."""
+    """Per-call rows of one batch size, in one growable arena (capacity doubles when full).
 
-    HEADER = 6  # packed-state prefix kept per env: valid, episode_step, dt, eef_pos (state.py order)
+    The arena `rows` (capacity, B, width) holds, per call and env, the raw and corrected actions,
+    the state header, the diagnostics and (with save_states) the packed state, in the order the
+    corrector's stream tick writes a row (core/tick.py REC_HEADER: `EpisodeRecorder.slot`);
+    raw, out, header, diag and states are views of it. Extras and call times are arrays of their own.
+    """
+
+    HEADER = REC_HEADER  # packed-state prefix kept per env: valid, episode_step, dt, eef_pos (state.py order)
     # first rows held: a LIBERO episode (at most 520 steps, libero_10) fits, so no rollout batch grows
     # the arrays inside a control tick (a doubling copies every row: ~40-100 us at B = 1)
     CAPACITY = 512
@@ -188,13 +196,17 @@ class _Segment:
     def __init__(self, b: int, a_dim: int, n_diag: int, n_extra: int, n_state: int | None):
         self.b, self.a_dim, self.n_diag, self.n_extra, self.n_state = b, a_dim, n_diag, n_extra, n_state
         self.n = 0
-        cap = self.CAPACITY
-        self.raw, self.out = np.zeros((cap, b, a_dim)), np.zeros((cap, b, a_dim))
-        self.header = np.zeros((cap, b, self.HEADER))
-        self.diag = np.zeros((cap, b, n_diag))
-        self.extra = np.full((cap, b, n_extra), np.nan)
-        self.t_us = np.zeros(cap)
-        self.states = np.zeros((cap, b, n_state)) if n_state else None
+        self.width = 2 * a_dim + self.HEADER + n_diag + (n_state or 0)
+        self._views(np.zeros((self.CAPACITY, b, self.width)))
+        self.extra = np.full((self.CAPACITY, b, n_extra), np.nan)
+        self.t_us = np.zeros(self.CAPACITY)
+
+    def _views(self, rows: np.ndarray) -> None:
+        a, o_d = self.a_dim, 2 * self.a_dim + self.HEADER
+        self.rows = rows
+        self.raw, self.out, self.header = rows[:, :, :a], rows[:, :, a : 2 * a], rows[:, :, 2 * a : o_d]
+        self.diag = rows[:, :, o_d : o_d + self.n_diag]
+        self.states = rows[:, :, o_d + self.n_diag :] if self.n_state else None
 
     def clear(self) -> None:
         """Forget the rows (the arrays are kept and reused)."""
@@ -204,28 +216,39 @@ class _Segment:
     def fits(self, b, a_dim, n_diag, n_extra, n_state) -> bool:
         return (b, a_dim, n_diag, n_extra, n_state) == (self.b, self.a_dim, self.n_diag, self.n_extra, self.n_state)
 
+    def reserve(self) -> int:
+        """The index of the next row, the arrays doubled first where they are full."""
+        k = self.n
+        if k == len(self.t_us):
+            rows = np.zeros((2 * k, *self.rows.shape[1:]))
+            rows[:k] = self.rows[:k]
+            self._views(rows)
+            extra = np.full((2 * k, *self.extra.shape[1:]), np.nan)
+            extra[:k] = self.extra[:k]
+            t_us = np.zeros(2 * k)
+            t_us[:k] = self.t_us[:k]
+            self.extra, self.t_us = extra, t_us
+        return k
+
+    def commit(self, extra, t_us: float) -> None:
+        """The row reserved last is written (its extras (B, E) or None, the time per env-step, us)."""
+        k = self.n
+        if extra is not None:
+            self.extra[k, :, : extra.shape[1]] = extra
+        self.t_us[k] = t_us
+        self.n = k + 1
+
     def append(self, raw, out, flat, diag, extra, t_us: float) -> None:
         """One call: raw and corrected actions (B, A) or (B, T, A) (step 0 is kept), packed states
         (B, L), diagnostics (B, D), extras (B, E) or None, the time per env-step (us)."""
-        k = self.n
-        if k == len(self.t_us):
-            for name in ("raw", "out", "header", "diag", "extra", "t_us", "states"):
-                arr = getattr(self, name)
-                if arr is not None:
-                    grown = np.full((2 * len(arr), *arr.shape[1:]), np.nan) if name == "extra" else np.zeros(
-                        (2 * len(arr), *arr.shape[1:]))
-                    grown[:k] = arr[:k]
-                    setattr(self, name, grown)
+        k = self.reserve()
         self.raw[k] = raw[:, 0] if raw.ndim == 3 else raw
         self.out[k] = out[:, 0] if out.ndim == 3 else out
         self.header[k] = flat[:, : self.HEADER]
         self.diag[k] = diag
-        if extra is not None:
-            self.extra[k, :, : extra.shape[1]] = extra
-        self.t_us[k] = t_us
         if self.states is not None:
             self.states[k] = flat
-        self.n = k + 1
+        self.commit(extra, t_us)
 
 
 class EpisodeRecorder:
@@ -266,23 +289,41 @@ class EpisodeRecorder:
     def __call__(self, raw, out, flat, extra, corrector, t_total_s) -> None:
         """One corrector call: raw and corrected actions (B, A) or (B, T, A), the packed states
         (B, L), the env extras (B, E) or None, the corrector (its diag_buffer) and the call time (s)."""
-        b, a_dim = raw.shape[0], raw.shape[-1]
         diag = corrector.diag_buffer
+        seg = self._segment(raw.shape[0], raw.shape[-1], diag.shape[1], extra, flat)
+        seg.append(raw, out, flat, diag, extra, t_total_s * 1e6 / raw.shape[0])
+        self._episodes = None
+
+    def slot(self, b: int, a_dim: int, n_diag: int, extra, flat) -> tuple[np.ndarray, int]:
+        """Before a corrector call that writes its own row (Corrector.correct_stream(..., rows, k),
+        as PhysVLACorrectorStep calls it): the arena and the row index to write; then `commit`."""
+        seg = self._segment(b, a_dim, n_diag, extra, flat)
+        k = seg.reserve()  # first: a full arena is replaced by a larger one
+        return seg.rows, k
+
+    def commit(self, extra, t_us: float) -> None:
+        """After the call that filled the row `slot` gave: its extras (B, E) or None and its time
+        per env-step (us)."""
+        self._seg.commit(extra, t_us)
+        self._episodes = None
+
+    def _segment(self, b: int, a_dim: int, n_diag: int, extra, flat) -> _Segment:
+        """The segment this call's row goes to: a new one for rows of another shape; the current
+        one emptied (its rows reduced to episodes) when every env is back at step 0."""
         n_extra = 0 if extra is None else extra.shape[1]
         n_state = flat.shape[1] if self.save_states else None
         seg = self._seg
-        if seg is None or not seg.fits(b, a_dim, diag.shape[1], max(n_extra, seg.n_extra), n_state):
+        if seg is None or not seg.fits(b, a_dim, n_diag, max(n_extra, seg.n_extra), n_state):
             if self._segments:  # rows of another shape: that recording is over
                 self._finish()
-            seg = self._seg = _Segment(b, a_dim, diag.shape[1], n_extra, n_state)
+            seg = self._seg = _Segment(b, a_dim, n_diag, n_extra, n_state)
             self._segments.append(seg)
         elif flat[0, 1] == 0.0 and seg.n and not flat[:, 1].any() and seg.header[seg.n - 1, :, 1].any():
             # every env back at step 0 (from anywhere else): the last rollout batch is over
             self._finish()
             seg.clear()
             self._segments.append(seg)
-        seg.append(raw, out, flat, diag, extra, t_total_s * 1e6 / b)
-        self._episodes = None
+        return seg
 
     def end_batch(self) -> None:
         """The rollout batch recorded so far is over: split it into episodes and compact them now.

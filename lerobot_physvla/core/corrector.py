@@ -42,14 +42,39 @@ from lerobot_physvla.core.tick import (
     D_DEV, D_GUARD, D_LIFT, D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, FP_B, FP_CAP, FP_CAPS, FP_D_GRASP,
     FP_GRIP_OPEN, FP_H_LIFT, FP_HIGH, FP_LOW, FP_LP, FP_VETO, IP_B, IP_BASELINE, IP_BRANCH_B, IP_FLAGS, IP_GRIP,
     EPISODE_STEP, IP_LOWPASS, IP_LP_MASK, IP_N, IP_PHASE, IP_POS, IP_TEMPORAL, IP_VETO, N_DIAG, N_FP, N_IP, N_W,
-    W_DIAG, W_EP, W_FP, W_HAS, W_HOLD, W_LAST, W_LP, W_MEM, W_NLP, W_NMEM, W_NPA, W_PA, W_ABS, correct_tick,
-    record_tick, stream_tick,
+    REC_HEADER, W_DIAG, W_EP, W_FP, W_HAS, W_HOLD, W_LAST, W_LP, W_MEM, W_NLP, W_NMEM, W_NPA, W_PA, W_ABS,
+    correct_tick, record_tick, stream_tick,
 )
 
 
 
 _NAN = float("nan")
 _STREAM_DTYPES = (np.dtype(np.float32), np.dtype(np.float64))  # action dtypes stream_tick is compiled for
+_NO_ROWS = np.zeros((0, 0, 0))  # stream_tick's recording arena when nothing records
+
+
+def _rows_ok(rows) -> bool:
+    """A recording arena stream_tick may write into: a C-contiguous, writeable float64 (capacity, B, width)."""
+    return (type(rows) is np.ndarray and rows.dtype == np.float64 and rows.ndim == 3 and rows.flags.carray
+            and rows.flags.writeable)
+
+
+def record_row(rows: np.ndarray, k: int, raw: np.ndarray, out: np.ndarray, flat: np.ndarray, diag: np.ndarray) -> None:
+    """rows[k] as stream_tick writes it (core/tick.py REC_HEADER), from Python: for the calls that do
+    not take the one-call path (chunks, other dtypes). A chunk's step 0 is the row."""
+    if not (0 <= k < rows.shape[0] and rows.shape[1] == raw.shape[0]):
+        return
+    a_dim, n_d = raw.shape[-1], diag.shape[1]
+    o_d = 2 * a_dim + REC_HEADER
+    if rows.shape[2] < o_d + n_d:
+        return
+    row = rows[k]
+    row[:, :a_dim] = raw[:, 0] if raw.ndim == 3 else raw
+    row[:, a_dim : 2 * a_dim] = out[:, 0] if out.ndim == 3 else out
+    row[:, 2 * a_dim : o_d] = flat[:, :REC_HEADER]
+    row[:, o_d : o_d + n_d] = diag
+    if rows.shape[2] >= o_d + n_d + flat.shape[1]:
+        row[:, o_d + n_d : o_d + n_d + flat.shape[1]] = flat
 
 
 @dataclass
@@ -158,6 +183,7 @@ class Corrector:
         self._p_a[:], self._hold0[:] = p_a, hold0
         self._iws_ip = w[N_W : N_W + N_IP]  # the integer parameters of the joint count in _iws_n
         self._iws_n = -1
+        self._rows_checked = None  # the recording arena last checked by correct_stream
         self._idx = w[N_W + N_IP :]
         self._idx[:] = idx
         self._absolute, self._has_last = self._bws[:a_dim], self._bws[a_dim:]
@@ -231,10 +257,14 @@ class Corrector:
         t0 = time.perf_counter()
         return self._correct(self._check(actions), flat, t0)
 
-    def correct_stream(self, actions, flat) -> np.ndarray:
+    def correct_stream(self, actions, flat, rows=None, k: int = 0) -> np.ndarray:
         """One step of a stream of control steps: as correct_packed for (B, A) actions, and an env
         whose packed `episode_step` went back (a reset), or that has not been seen since the
         corrector was built or reset, starts afresh first (`reset` of that env).
+
+        rows, k: a recording arena (capacity, B, width) float64 C-contiguous and the row to fill
+        with this step's raw and emitted actions, state header, diagnostics (and whole state where
+        wide enough): core/tick.py REC_HEADER, diagnostics.EpisodeRecorder.slot. None: no recording.
 
         Where it can -- actions a C-contiguous, aligned, writeable float32 / float64 (B, A) numpy
         array, flat the (B, L) float64 packed states (the same), not profiling -- this is one compiled call
@@ -242,6 +272,13 @@ class Corrector:
         steps (resets, then correct_packed), float64.
         """
         t0 = time.perf_counter()
+        if rows is None:
+            rows = _NO_ROWS
+        elif rows is not self._rows_checked:  # checked once per arena: the direct call trusts its types
+            if not _rows_ok(rows):
+                raise ValueError("physvla: a recording arena must be a C-contiguous writeable float64 "
+                                 "(capacity, B, width) array")
+            self._rows_checked = rows
         if type(flat) is np.ndarray and flat.ndim == 2 and flat.shape[1] != self._flat_width:
             self._set_width(flat.shape[1])
         if (type(actions) is np.ndarray and actions.ndim == 2 and actions.dtype in _STREAM_DTYPES
@@ -255,8 +292,8 @@ class Corrector:
             call = Corrector._stream_calls.get(actions.dtype)
             if call is None:  # the compiled overload for this action dtype, called without numba's dispatch
                 call = Corrector._stream_calls[actions.dtype] = direct_entry(
-                    stream_tick, actions, flat, self._fws, self._iws, self._bws)
-            out, events = call(actions, flat, self._fws, self._iws, self._bws)
+                    stream_tick, actions, flat, self._fws, self._iws, self._bws, _NO_ROWS, 0)
+            out, events = call(actions, flat, self._fws, self._iws, self._bws, rows, k)
             self.steps += self.batch_size
             self._t_a = self._t_b = _NAN
             self._diag, self._has_diag = None, True
@@ -271,7 +308,10 @@ class Corrector:
             if fresh.any():
                 self.reset(np.flatnonzero(fresh))
             self._ep_last[:] = step
-        return self.correct_packed(actions, flat)
+        out = self.correct_packed(actions, flat)
+        if rows.shape[0]:
+            record_row(rows, k, np.asarray(actions), out, f, self.diag_buffer)
+        return out
 
     def _set_width(self, width: int) -> None:
         """A new packed-state width: its joint count, checked once (ValueError for a width no arm

@@ -55,6 +55,11 @@ EPISODE_STEP = field_offsets(1)["episode_step"]  # a header field: the same offs
 # action, diag, ep_last), p_a's length, mem's and lp_mem's widths, offsets into the bool arena bws
 # (absolute, has_last); then the tick's integer parameters ip (N_IP) and the channel index
 (W_FP, W_PA, W_NPA, W_HOLD, W_MEM, W_NMEM, W_LP, W_NLP, W_LAST, W_DIAG, W_EP, W_ABS, W_HAS, N_W) = range(14)
+# a recording row per env (diagnostics.EpisodeRecorder's arena, (capacity, B, width)), which stream_tick
+# fills when given one: the raw action (A), the emitted action (A), the packed state's first REC_HEADER
+# fields (valid, episode_step, dt, eef_pos), the diagnostics (N_DIAG + A), then the whole packed
+# state (L) where the arena is that wide
+REC_HEADER = 6
 
 
 @njit(error_model="numpy")
@@ -126,7 +131,7 @@ def _compile_stream(key: int):
     # correct_tick is read as a module global here (a closure over a dispatcher would make numba
     # skip its cache and compile at every start); key keeps the cache keyed on every stage's source
     @njit(cache=True, error_model="numpy")
-    def stream_tick(a_in, flat, fws, iws, bws):
+    def stream_tick(a_in, flat, fws, iws, bws, rows, k):
         """One control step of a stream of (B, A) actions, what a LeRobot step needs in one
         compiled call with few arguments (a call from Python costs ~8 us plus ~0.7 us per array
         argument when the caches are cold, as they are between physics steps):
@@ -134,7 +139,11 @@ def _compile_stream(key: int):
         1. episode boundaries: an env whose packed `episode_step` went back, or that has none
            yet (NaN in ep_last), starts afresh (its Branch A and low-pass memory and last action
            forgotten, as Corrector.reset); ep_last keeps each env's counter;
-        2. the tick (correct_tick, committed) on a_in cast to float64, its output in a_in's dtype.
+        2. the tick (correct_tick, committed) on a_in cast to float64, its output in a_in's dtype;
+        3. the recording: where rows (capacity, B, width) has a row k for these B envs, rows[k] gets
+           this tick's raw and emitted actions, state header, diagnostics (and whole state where
+           wide enough) (REC_HEADER above): the diagnostics a recorder keeps, written here rather
+           than copied array by array in Python after the call. rows of shape (0, 0, 0): no recording.
 
         The corrector's arrays live in three arenas (Corrector.__init__), at offsets iws[W_*]:
         fws float64 (fp, p_a, hold0, mem, lp_mem, last, diag, ep_last), iws int64 (the offsets,
@@ -173,6 +182,21 @@ def _compile_stream(key: int):
         for i in range(b):
             for j in range(a_dim):
                 res[i, j] = out[i, j]
+        if 0 <= k < rows.shape[0] and rows.shape[1] == b and rows.shape[2] >= 2 * a_dim + REC_HEADER + n_d:
+            o_h, o_d = 2 * a_dim, 2 * a_dim + REC_HEADER
+            o_s = o_d + n_d
+            whole = rows.shape[2] >= o_s + flat.shape[1]
+            for i in range(b):
+                for j in range(a_dim):
+                    rows[k, i, j] = a_in[i, j]
+                    rows[k, i, a_dim + j] = res[i, j]
+                for j in range(REC_HEADER):
+                    rows[k, i, o_h + j] = flat[i, j]
+                for j in range(n_d):
+                    rows[k, i, o_d + j] = diag[i, j]
+                if whole:
+                    for j in range(flat.shape[1]):
+                        rows[k, i, o_s + j] = flat[i, j]
         return res, events
 
     return stream_tick

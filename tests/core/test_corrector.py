@@ -322,9 +322,10 @@ def test_arrays_the_direct_call_cannot_take_go_in_steps_with_the_same_output():
         np.testing.assert_array_equal(out1, out2.astype(np.float32))
     # the direct entry is the dispatcher's own compiled code: same result on the same arrays
     c1, c2 = Corrector(PRESETS["default"], 2), Corrector(PRESETS["default"], 2)
-    call = direct_entry(stream_tick, a, flat, c1._fws, c1._iws, c1._bws)
-    r1, e1 = call(a, flat, c1._fws, c1._iws, c1._bws)
-    r2, e2 = stream_tick(a, flat, c2._fws, c2._iws, c2._bws)
+    none = np.zeros((0, 0, 0))
+    call = direct_entry(stream_tick, a, flat, c1._fws, c1._iws, c1._bws, none, 0)
+    r1, e1 = call(a, flat, c1._fws, c1._iws, c1._bws, none, 0)
+    r2, e2 = stream_tick(a, flat, c2._fws, c2._iws, c2._bws, none, 0)
     np.testing.assert_array_equal(r1, r2)
     assert e1 == e2
 

@@ -160,3 +160,44 @@ def test_add_corrector_replaces_an_existing_one(tmp_path):
 def test_unknown_mode_in_a_config_is_a_clear_error():
     with pytest.raises(ValueError, match="unknown mode 'turbo'"):
         PhysVLACorrectorStep(config={"mode": "turbo"})
+
+
+@pytest.mark.parametrize("save_states", [False, True])
+def test_the_recorder_row_written_inside_the_tick_is_the_row_a_listener_copies(save_states):
+    """lerobot-eval's recorder, the step's only listener, has its row written by the compiled tick
+    (EpisodeRecorder.slot / commit); any other listener set copies it in Python after the call. Both
+    must record the same episodes: float32 and float64 actions (one compiled call each), chunks
+    (the corrector's path in steps), extras, batches that restart, more steps than the first capacity."""
+    from lerobot_physvla.core.config import LAYOUTS, PRESETS
+    from lerobot_physvla.diagnostics import EpisodeRecorder, _Segment
+
+    lay = LAYOUTS["libero_osc_pose"]
+    cfg = PRESETS["default"].to_dict()
+    folded, copied = (PhysVLACorrectorStep(config=cfg, bus=f"fold-{save_states}-{i}") for i in range(2))
+    recs = [EpisodeRecorder(layout=lay, keep_steps=None, save_states=save_states) for _ in range(2)]
+    folded.listeners.append(recs[0])
+    copied.listeners += [recs[1], lambda *args: None]  # two listeners: the copying path
+    rng = np.random.default_rng(5)
+    for batch, steps in enumerate((40, _Segment.CAPACITY + 30, 25)):
+        for t in range(steps):
+            st = make_state(batch_size=2, obj=(0.02 * (30 - t % 30), 0.0, 0.9), seed=t)
+            st.episode_step[:] = t
+            extra = np.zeros((2, 9))
+            extra[:, 0], extra[:, 2:] = batch, rng.uniform(-1, 1, (2, 7))
+            a = rng.uniform(-1.2, 1.2, (2, 5, 7) if t % 11 == 5 else (2, 7))
+            act = torch.from_numpy(a.astype(np.float32) if t % 4 else a)
+            outs = []
+            for step in (folded, copied):
+                get_bus(step.bus).publish(st.pack(), torch.from_numpy(extra))
+                outs.append(post_pipeline(step)(act.clone()))
+            assert torch.equal(outs[0], outs[1])
+    a, b = recs[0].records(), recs[1].records()
+    assert len(a) == 6 and [r["steps"] for r in a] == [40, 40, _Segment.CAPACITY + 30, _Segment.CAPACITY + 30, 25, 25]
+    for ra, rb in zip(a, b):
+        for key, value in rb.items():
+            if key not in ("overhead_us_p50", "overhead_us_p99"):  # the call times differ
+                assert ra[key] == value or (value != value and ra[key] != ra[key]), key
+    for ea, eb in zip(recs[0].episodes, recs[1].episodes):
+        np.testing.assert_array_equal(ea.raw, eb.raw)
+        np.testing.assert_array_equal(ea.states, eb.states)
+        assert ea.states.shape[1] == (st.pack().shape[1] if save_states else 0)
