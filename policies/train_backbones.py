@@ -141,7 +141,8 @@ RESUMED_SUFFIX = "_fine"  # the resumed run's directory: <CPU_DRAW_DIR>/<recipe>
 # band): at dim_model 64 the chunked ACT stays weak throughout, at 128 it reaches 68-70 %. Between
 # them, fixed before any trained: widths 96 and 112 (feedforward 4x, 4 heads), their final checkpoint
 # only (a converged model of limited capacity, not a checkpoint caught inside the jump). The same rule
-# keeps one of all candidates of every round.
+# keeps one of all candidates of every round. Sixth round, after 96 landed at 6 % and 112 at 68 %: the
+# 112-wide run's earlier checkpoints (2400 .. 9600, saved by the same run) join the candidates.
 # smaller recipe -> (the recipe it shrinks, the lerobot-train arguments that replace the recipe's,
 # the steps of its run that are candidates)
 SMALLER: dict[str, tuple[str, tuple[str, ...], tuple[int, ...]]] = {
@@ -150,7 +151,8 @@ SMALLER: dict[str, tuple[str, tuple[str, ...], tuple[int, ...]]] = {
     "act_chunk_tiny": ("act_chunk", ("--policy.dim_model=32", "--policy.n_heads=2", "--policy.dim_feedforward=128"),
                        (2400, 4800, 7200, 9600, 12000)),
     "act_chunk_w96": ("act_chunk", ("--policy.dim_model=96", "--policy.dim_feedforward=384"), (12000,)),
-    "act_chunk_w112": ("act_chunk", ("--policy.dim_model=112", "--policy.dim_feedforward=448"), (12000,)),
+    "act_chunk_w112": ("act_chunk", ("--policy.dim_model=112", "--policy.dim_feedforward=448"),
+                       (2400, 4800, 7200, 9600, 12000)),
 }
 SMALLER_OF: dict[str, tuple[str, ...]] = {"act_chunk_mid2": ("act_chunk_small", "act_chunk_tiny", "act_chunk_w96",
                                                              "act_chunk_w112")}
