@@ -29,6 +29,7 @@ import numpy as np
 
 from lerobot_physvla import metrics
 from lerobot_physvla.report import corrections_by_phase, phase_timeline
+from lerobot_physvla.core.corrector import record_row
 from lerobot_physvla.core.phase import PHASE_NAMES
 from lerobot_physvla.core.state import REASONS
 from lerobot_physvla.core.tick import D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, D_W_SUM, REC_HEADER
@@ -242,12 +243,7 @@ class _Segment:
         """One call: raw and corrected actions (B, A) or (B, T, A) (step 0 is kept), packed states
         (B, L), diagnostics (B, D), extras (B, E) or None, the time per env-step (us)."""
         k = self.reserve()
-        self.raw[k] = raw[:, 0] if raw.ndim == 3 else raw
-        self.out[k] = out[:, 0] if out.ndim == 3 else out
-        self.header[k] = flat[:, : self.HEADER]
-        self.diag[k] = diag
-        if self.states is not None:
-            self.states[k] = flat
+        record_row(self.rows, k, raw, out, flat, diag)  # the row as the corrector's stream tick writes it
         self.commit(extra, t_us)
 
 
