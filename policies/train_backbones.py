@@ -32,11 +32,12 @@ the 30-50 % band #9 asks for; the `_mid` siblings (`CONTINUED`, `CPU_DRAW`, `MID
     .venv/bin/python policies/train_backbones.py act_single_mid     # continues act_single_weak here
     .venv/bin/python policies/train_backbones.py act_single --out outputs/train/cpu_full
     .venv/bin/python policies/train_backbones.py act_chunk --out outputs/train/cpu_full   # act_chunk_mid2
-    .venv/bin/python policies/train_backbones.py act_chunk_mid2   # resumes that run from 7200 (RESUMED)
+    .venv/bin/python policies/train_backbones.py act_chunk_fine   # resumes that run from 7200 (RESUMED)
     .venv/bin/python policies/train_backbones.py act_chunk_small --out outputs/train/cpu_full  # SMALLER
     .venv/bin/python policies/train_backbones.py act_chunk_tiny --out outputs/train/cpu_full
     .venv/bin/python policies/train_backbones.py act_chunk_w96 --out outputs/train/cpu_full   # fifth round
     .venv/bin/python policies/train_backbones.py act_chunk_w112 --out outputs/train/cpu_full
+    .venv/bin/python policies/train_backbones.py act_chunk_w112_fine   # seventh round: resumes it from 4800
     .venv/bin/python eval/experiments.py learned_mid --learned act_single_mid,act_chunk_mid,act_chunk_mid2
 
 Normalisation: lerobot 0.6.1's ACT and Diffusion configs normalise only the VISUAL, STATE and
@@ -127,9 +128,12 @@ CPU_DRAW: dict[str, tuple[str, tuple[int, ...]]] = {
 # the same run resumed from its 7200 checkpoint (`lerobot-train --resume`: its weights, optimizer,
 # scheduler and data order) to 9600, saving every 400 steps; its 9600 is not a candidate (the whole
 # run's is), only a check that resuming retraces the run. The same rule keeps one of all candidates.
-# name -> (recipe whose CPU_DRAW run is resumed, from step, to step, save every)
-RESUMED: dict[str, tuple[str, int, int, int]] = {"act_chunk_mid2": ("act_chunk", 7200, 9600, 400)}
-RESUMED_SUFFIX = "_fine"  # the resumed run's directory: <CPU_DRAW_DIR>/<recipe>_fine
+# Seventh round (below the sixth): the 112-wide run resumed the same way.
+# resumed run (its directory under <CPU_DRAW_DIR>) -> (the whole CPU run it resumes, from step, to step,
+# save every); its candidates are the steps strictly between from and to
+RESUMED: dict[str, tuple[str, int, int, int]] = {"act_chunk_fine": ("act_chunk", 7200, 9600, 400),
+                                                 "act_chunk_w112_fine": ("act_chunk_w112", 4800, 7200, 400)}
+RESUMED_OF: dict[str, tuple[str, ...]] = {"act_chunk_mid2": ("act_chunk_fine", "act_chunk_w112_fine")}
 # Fourth round for act_chunk_mid2: the resumed run's checkpoints went 18, 2, 4, 4, 62 % (7600 .. 9200):
 # at act_chunk's size the policy learns to let go of the bowl within ~400 updates, in most tasks at
 # once, so no checkpoint of such a run sits in the band. A smaller model instead (#9 allows "an
@@ -143,6 +147,10 @@ RESUMED_SUFFIX = "_fine"  # the resumed run's directory: <CPU_DRAW_DIR>/<recipe>
 # only (a converged model of limited capacity, not a checkpoint caught inside the jump). The same rule
 # keeps one of all candidates of every round. Sixth round, after 96 landed at 6 % and 112 at 68 %: the
 # 112-wide run's earlier checkpoints (2400 .. 9600, saved by the same run) join the candidates.
+# Seventh round, after those went 14, 0, 56, 66 % (the pick, 7200 at 56 %, outside the band): the
+# 112-wide run resumed from its 4800 checkpoint (0 %) to 7200, saving every 400 steps (RESUMED
+# act_chunk_w112_fine: candidates 5200 .. 6800, inside the jump from 0 to 56 %; its 7200 is not one).
+# Fixed before it trained; the same rule keeps one of all candidates of every round.
 # smaller recipe -> (the recipe it shrinks, the lerobot-train arguments that replace the recipe's,
 # the steps of its run that are candidates)
 SMALLER: dict[str, tuple[str, tuple[str, ...], tuple[int, ...]]] = {
@@ -156,7 +164,7 @@ SMALLER: dict[str, tuple[str, tuple[str, ...], tuple[int, ...]]] = {
 }
 SMALLER_OF: dict[str, tuple[str, ...]] = {"act_chunk_mid2": ("act_chunk_small", "act_chunk_tiny", "act_chunk_w96",
                                                              "act_chunk_w112")}
-MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW, *RESUMED, *SMALLER_OF]))  # every `_mid` sibling
+MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW, *RESUMED_OF, *SMALLER_OF]))  # every `_mid` sibling
 CPU_DRAW_DIR = "cpu_full"  # where, under the training root, the whole CPU runs are
 # name -> the kept candidate: (its run's directory under the training root, step), as
 # eval/results/learned_mid chose it (a test recomputes the choice from that file's units). A sibling
@@ -178,11 +186,11 @@ def mid_candidates(name: str, out_root: str = "outputs/train") -> dict[str, Path
         for step in steps:
             p = Path(out_root) / CPU_DRAW_DIR / recipe / "checkpoints" / f"{step:06d}" / "pretrained_model"
             found[f"{recipe}_cpufull@{p.parent.name}"] = p
-    if name in RESUMED:
-        recipe, start, stop, every = RESUMED[name]
-        run = Path(out_root) / CPU_DRAW_DIR / (recipe + RESUMED_SUFFIX)
+    for resumed in RESUMED_OF.get(name, ()):
+        _, start, stop, every = RESUMED[resumed]
+        run = Path(out_root) / CPU_DRAW_DIR / resumed
         for step in range(start + every, stop, every):
-            found[f"{recipe}{RESUMED_SUFFIX}@{step:06d}"] = run / "checkpoints" / f"{step:06d}" / "pretrained_model"
+            found[f"{resumed}@{step:06d}"] = run / "checkpoints" / f"{step:06d}" / "pretrained_model"
     for small in SMALLER_OF.get(name, ()):
         run = Path(out_root) / CPU_DRAW_DIR / small / "checkpoints"
         for step in SMALLER[small][2]:
@@ -245,13 +253,14 @@ def continued_command(name: str, dataset: str, out_root: str, steps: int | None 
 
 
 def resumed_command(name: str, out_root: str, device: str = "cpu", num_workers: int = 0) -> list[str]:
-    """The lerobot-train argv that resumes a whole CPU run (RESUMED) from a checkpoint into its own
-    directory: the run's config, weights, optimizer, scheduler and data order come from the checkpoint."""
+    """The lerobot-train argv of a resumed run (RESUMED): a whole CPU run resumed from a checkpoint into
+    the resumed run's own directory; the run's config, weights, optimizer, scheduler and data order
+    come from the checkpoint."""
     recipe, start, stop, every = RESUMED[name]
     ckpt = Path(out_root) / CPU_DRAW_DIR / recipe / "checkpoints" / f"{start:06d}" / "pretrained_model"
     return [*_lerobot_train(), "--resume=true", f"--config_path={ckpt / 'train_config.json'}",
             f"--policy.device={device}", f"--num_workers={num_workers}", f"--steps={stop}", f"--save_freq={every}",
-            f"--output_dir={Path(out_root) / CPU_DRAW_DIR / (recipe + RESUMED_SUFFIX)}"]
+            f"--output_dir={Path(out_root) / CPU_DRAW_DIR / name}"]
 
 
 def checkpoint(name: str, out_root: str = "outputs/train") -> Path:
@@ -345,7 +354,7 @@ def train(name: str, dataset: str, out_root: str, steps: int | None = None, devi
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("recipe", nargs="?", choices=[*RECIPES, *SMALLER, *CONTINUED, *RESUMED, "all"], default="all",
-                    help="a recipe, a `_mid` sibling that continues a committed checkpoint or resumes a CPU run, "
+                    help="a recipe, a `_mid` sibling that continues a committed checkpoint, a resumed CPU run, "
                          "or all recipes")
     ap.add_argument("--dataset", default=DATASET)
     ap.add_argument("--out", default="outputs/train")

@@ -96,12 +96,12 @@ def test_record_train_and_run_a_learned_backbone(tmp_path, monkeypatch):
     # --resume into its own directory, saving finer; the recipe names the checkpoint it resumed
     (tmp_path / "train" / "cpu_full").mkdir()
     shutil.copytree(tmp_path / "train" / "act_chunk", tmp_path / "train" / "cpu_full" / "act_chunk")
-    monkeypatch.setitem(train_backbones.RESUMED, "act_chunk_mid2", ("act_chunk", 1, 2, 1))
-    cmd = train_backbones.resumed_command("act_chunk_mid2", str(tmp_path / "train"))
+    monkeypatch.setitem(train_backbones.RESUMED, "act_chunk_fine", ("act_chunk", 1, 2, 1))
+    cmd = train_backbones.resumed_command("act_chunk_fine", str(tmp_path / "train"))
     assert "--resume=true" in cmd and "--save_freq=1" in cmd and "--steps=2" in cmd
     start = tmp_path / "train" / "cpu_full" / "act_chunk" / "checkpoints" / "000001" / "pretrained_model"
     monkeypatch.chdir(ROOT)
-    train_backbones.train("act_chunk_mid2", str(ds), str(tmp_path / "train"))
+    train_backbones.train("act_chunk_fine", str(ds), str(tmp_path / "train"))
     fine = tmp_path / "train" / "cpu_full" / "act_chunk_fine" / "checkpoints" / "000002" / "pretrained_model"
     fine_recipe = json.loads((fine / "recipe.json").read_text())
     assert fine_recipe["resumes"]["model_sha256"] == hashlib.sha256((start / "model.safetensors").read_bytes()).hexdigest()
@@ -242,9 +242,9 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
     for name in train_backbones.MID_SIBLINGS:
         run, step = train_backbones.MID_CHOICE.get(name, (None, None))
         continued, drawn = train_backbones.CONTINUED.get(name), train_backbones.CPU_DRAW.get(name)
-        resumed = train_backbones.RESUMED.get(name)
+        resumed = train_backbones.RESUMED_OF.get(name, ())
         prefixes = (([f"{name}@"] if continued else []) + ([f"{drawn[0]}_cpufull@"] if drawn else [])
-                    + ([f"{resumed[0]}{train_backbones.RESUMED_SUFFIX}@"] if resumed else [])
+                    + [f"{run}@" for run in resumed]
                     + [f"{small}@" for small in train_backbones.SMALLER_OF.get(name, ())])
         rate, sha = {}, {}
         for u in sorted(units.glob("*__baseline__*.json")):
@@ -254,7 +254,8 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
                 rate.setdefault(cand, []).extend(r["success"] for r in payload["records"])
                 sha[cand] = payload["policy_sha256"]
         steps = ((continued[1] // continued[2] if continued else 0) + (len(drawn[1]) if drawn else 0)
-                 + ((resumed[2] - resumed[1]) // resumed[3] - 1 if resumed else 0)
+                 + sum((train_backbones.RESUMED[r][2] - train_backbones.RESUMED[r][1]) // train_backbones.RESUMED[r][3] - 1
+                       for r in resumed)
                  + sum(len(train_backbones.SMALLER[s][2]) for s in train_backbones.SMALLER_OF.get(name, ())))
         assert len(rate) == steps and all(len(v) == 50 for v in rate.values()), name
         kept = train_backbones.choose_mid({c: float(np.mean(v)) for c, v in rate.items()})
