@@ -59,6 +59,8 @@ class LeRobotBackbone:
 
         self._runner = LeRobotPolicy(path)
         self.policy = self._runner.policy
+        # actions executed open loop per policy call (ACT / Diffusion: n_action_steps; else 1)
+        self.actions_per_call = int(getattr(self.policy.config, "n_action_steps", 1) or 1)
 
     def reset(self, seed: int) -> None:
         self._runner.reset(seed)  # diffusion sampling noise: matched across modes per seed

@@ -88,6 +88,16 @@ CANDIDATE_9 = "default + grasp guidance c=0.05"
 # 42 failures end holding the bowl still over the plate (centre within 2 cm, 1-4 cm above the
 # plate's origin, or set down on it), gripper closed. 4 cm: the highest such hold traced was 3.8 cm
 CANDIDATE_10 = "default + release assist"
+# candidate 11: candidate 10 (the shipped default) + the paper's grasp guidance at c = 0.05 for policies
+# that execute open-loop chunks only (`chunk_phase_caps`: a single-step policy gets candidate 10
+# unchanged). Grounded in two traces of act_chunk_weak on the design block (task 0, init states 0
+# and 1): the guidance's gain under phys (grasp only) came partly from the hover over the plate (the
+# FSM fell back to grasp there and the pull to the bowl's centre nudged it down onto the plate), and
+# its loss under candidate 9 from the same hover: a grasp pulled 3 mm nearer the bowl's centre hangs
+# it 1.6 cm higher under the hand (0.044 vs 0.060 m), the ACT lowers its hand to where it always
+# does, and the bowl stops 1 cm above the plate, held, to the end. Candidate 10's release assist
+# opens exactly such a hold.
+CANDIDATE_11 = "default + chunked grasp guidance"
 
 # Each correction alone (the others' authority 0), phys mode.
 ALONE = {
@@ -159,6 +169,7 @@ COMPARED = {
                                             lowpass_rough_lo=0.12, lowpass_rough_hi=0.25),
     CANDIDATE_9: DEFAULT_6.replace(phase_caps=(0.0, 0.05, 0.0, 1.0)),
     CANDIDATE_10: DEFAULT_6.replace(release_assist_m=0.04),
+    CANDIDATE_11: DEFAULT_6.replace(release_assist_m=0.04, chunk_phase_caps=(0.0, 0.05, 0.0, 1.0)),
     "temporal": PhysVLAConfig(mode="temporal"),
     "paper (eq. 2, c=0.05)": PRESETS["paper"],
     "paper Alg. 1 (c=1)": PRESETS["paper_alg1"],
@@ -263,6 +274,20 @@ CONFIRM9 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_6, CANDIDATE
 # expert or learned, loses more than 1 pair net against the shipped default, and (c) in every Lift /
 # Fetch cell it succeeds at most 1 of 20 fewer times than the shipped default.
 DESIGN10 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_6, CANDIDATE_10)}
+# Candidate 11 against candidate 10 (the shipped default, its reference) and baseline, on the chunked
+# ACTs only: on every other backbone (the scripted experts, Lift / Fetch, the single-step ACTs) it
+# is candidate 10 by construction (a test checks the configuration each is given). Design block:
+# init states 0-4 (stage learned11). Confirmation: init states 10-14 (stage learned11_confirm), a
+# block no corrector decision looked at; the ACTs' demonstrations were recorded there (init states
+# 10-39), so their success there is not a held-out one, but the paired difference of two
+# correctors on the same episodes is. 5-9 is not used: phys's grasp guidance on the chunked ACTs
+# was looked at there (stage learned_phys_confirm). Rule, written before either ran: it replaces
+# the shipped default if on each block (a) pooled over the three chunked ACTs its paired difference
+# against candidate 10 has a 95 % interval above 0 and (b) no chunked ACT loses more than 1 pair
+# net against candidate 10. The confirmation runs only if the design block passes.
+LEARNED_CHUNKED = ("act_chunk", "act_chunk_weak", "act_chunk_mid")
+DESIGN11 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_10, CANDIDATE_11)}
+CONFIRM11_SEEDS = range(10, 15)
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 # pairs in a complete LIBERO cell (10 tasks x 5 init states): the block sections show complete cells
@@ -485,6 +510,28 @@ def candidate10_verdict(records, learned, seeds, expert_names, lift_first: int) 
     return rows, ok
 
 
+def candidate11_verdict(learned, seeds) -> tuple[list[str], bool | None]:
+    """Candidate 11 against candidate 10 (and baseline) on the chunked ACTs of one block: rows and the
+    rule's verdict (DESIGN11's comment), or None when a cell of the block is missing."""
+    lrecs, rows, ok, pool = _block(list(learned), seeds), [], True, []
+    for b in LEARNED_CHUNKED:
+        for base in ("baseline", CANDIDATE_10):
+            p = paired(lrecs, CANDIDATE_11, b, base)
+            if p["n"] < FULL_CELL:
+                return rows, None
+            rows.append(paired_row(f"{b} / candidate 11 vs {base}", p))
+        p = paired(lrecs, CANDIDATE_11, b, CANDIDATE_10)
+        ok &= p["won"] - p["lost"] >= -1
+        by = {(r["config"], r["task_id"], r["seed"]): r["success"] for r in lrecs if r["backbone"] == b}
+        pool += [float(by[(CANDIDATE_11, t, s_)]) - float(by[(CANDIDATE_10, t, s_)])
+                 for (c, t, s_) in by if c == CANDIDATE_11 and (CANDIDATE_10, t, s_) in by]
+    mean, half = float(np.mean(pool)), 1.96 * float(np.std(pool, ddof=1)) / np.sqrt(len(pool))
+    rows.append(f"| chunked ACTs pooled / candidate 11 vs {CANDIDATE_10} | {len(pool)} | | | {mean * 100:+.1f} pp "
+                f"[{(mean - half) * 100:+.1f}, {(mean + half) * 100:+.1f}] | {sum(d > 0 for d in pool)} / "
+                f"{sum(d < 0 for d in pool)} / | | |")
+    return rows, ok and mean - half > 0
+
+
 def report(out, records, secs, n_units, header, write, learned=()) -> None:
     """eval/results/efficacy/README.md: the screen, both blocks paired against baseline, Lift/Fetch."""
     lines = header("Efficacy: per-correction ablation, the shipped default vs baseline, temporal and the paper's "
@@ -578,6 +625,17 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                       "over the learned ACTs an interval above 0 against candidate 6, named `default` here, the shipped "
                       "default until then; no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of "
                       "20 of it)\n", *PAIRED_HEAD, *rows]
+    for title, seeds in (("design block, init states 0-4", DESIGN_SEEDS),
+                         ("confirmation block, init states 10-14 (no corrector decision looked at it; the ACTs' "
+                          "demonstrations were recorded there)", CONFIRM11_SEEDS)):
+        rows, ok = candidate11_verdict(learned, seeds)
+        if rows:
+            verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
+            lines += ["", f"## 3j. Candidate 11 (candidate 10 + the paper's grasp guidance at c = 0.05 for policies "
+                      f"that execute chunks; every other policy gets candidate 10), chunked ACTs, {title}: {verdict} "
+                      "the rule written before it ran (eval/efficacy.py DESIGN11: pooled over the three chunked ACTs "
+                      f"an interval above 0 against candidate 10, `{CANDIDATE_10}` here; none losing more than 1 pair "
+                      "net against it)\n", *PAIRED_HEAD, *rows]
     lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
     if lift:
         lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",

@@ -632,11 +632,11 @@ def learned_mid(args) -> None:
 EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,"
                    "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,design7,confirm7,learned,learned_confirm,"
                    "learned_phys,learned_phys_confirm,design9,learned9,learned9_confirm,confirm9,design10,learned10,"
-                   "learned10_confirm,confirm10")
+                   "learned10_confirm,confirm10,learned11,learned11_confirm")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
-                  "learned10", "learned10_confirm"}
+                  "learned10", "learned10_confirm", "learned11", "learned11_confirm"}
 LEARNED = "act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,diffusion_chunk"
 
 
@@ -735,6 +735,10 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
         blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN10))
     if "learned10_confirm" in stages:  # and on init states 5-9
         blocks.append((ef.CONFIRM_SEEDS, names, ef.DESIGN10))
+    if "learned11" in stages:  # candidate 11 (and candidate 10, its reference) on the chunked ACTs, 0-4
+        blocks.append((ef.DESIGN_SEEDS, [n for n in names if n in ef.LEARNED_CHUNKED], ef.DESIGN11))
+    if "learned11_confirm" in stages:  # and on init states 10-14
+        blocks.append((ef.CONFIRM11_SEEDS, [n for n in names if n in ef.LEARNED_CHUNKED], ef.DESIGN11))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],

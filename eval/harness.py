@@ -143,8 +143,9 @@ def compute_unit(unit: Unit) -> dict:
     from lerobot_physvla.core.corrector import Corrector
 
     scene = _scene(unit.scene_name)
-    corrector = Corrector(PhysVLAConfig.from_dict(unit.config))
     backbone = _backbone(unit, scene)
+    # the configuration for this policy: chunk_phase_caps apply to policies that execute chunks
+    corrector = Corrector(PhysVLAConfig.from_dict(unit.config).for_policy(getattr(backbone, "actions_per_call", 1)))
     t0 = time.time()
     records = []
     for k in range(unit.episodes):

@@ -137,6 +137,10 @@ class PhysVLAConfig:
     Beyond the paper (docs/method.md "Options beyond the paper"; defaults keep the paper's method):
         phase_caps: per-phase authority (approach, grasp, transport, place) replacing the one cap c
             of eq. (2) in that phase; empty = c in every phase.
+        chunk_phase_caps: per-phase authority for a policy that executes open-loop action chunks
+            (more than one action per policy call: ACT's or Diffusion's n_action_steps > 1), in
+            place of phase_caps; empty = phase_caps for every policy. Resolved when the corrector
+            is built for a policy (`for_policy`); the per-step correction never sees it.
         veto_height_m: with gripper_rule=veto, a close commanded in the grasp phase while the
             end-effector is more than this above the object's origin is vetoed too (the fingers are
             above the object: no grasp can close on it), metres; 0 = approach phase only.
@@ -208,6 +212,7 @@ class PhysVLAConfig:
     gripper_rule: str = "blend"
     chunk: str = "all"
     phase_caps: tuple[float, ...] = ()
+    chunk_phase_caps: tuple[float, ...] = ()
     veto_height_m: float = 0.0
     veto_reach_m: float = 0.0
     veto_reopen: bool = True
@@ -260,9 +265,11 @@ class PhysVLAConfig:
             raise ValueError(f"physvla: need 0 <= eps_nm < r0_nm, got {self.eps_nm}, {self.r0_nm}")
         if len(self.grasp_offset_m) != 3:
             raise ValueError(f"physvla: grasp_offset_m needs 3 values, got {self.grasp_offset_m}")
-        if len(self.phase_caps) not in (0, 4) or not all(0.0 <= c <= 1.0 for c in self.phase_caps):
-            raise ValueError("physvla: phase_caps needs 4 values in [0, 1] (approach, grasp, transport, place) "
-                             f"or none, got {self.phase_caps}")
+        for name in ("phase_caps", "chunk_phase_caps"):
+            caps = getattr(self, name)
+            if len(caps) not in (0, 4) or not all(0.0 <= c <= 1.0 for c in caps):
+                raise ValueError(f"physvla: {name} needs 4 values in [0, 1] (approach, grasp, transport, place) "
+                                 f"or none, got {caps}")
         unknown = [p for p in self.lowpass_phases.replace(" ", "").split(",") if p and p not in PHASE_NAMES]
         if unknown:
             raise ValueError(f"physvla: unknown lowpass phase(s) {unknown}; choose from {', '.join(PHASE_NAMES)}")
@@ -286,6 +293,14 @@ class PhysVLAConfig:
         """The blender's authority per phase (approach, grasp, transport, place)."""
         return tuple(self.phase_caps) if self.phase_caps else (self.cap,) * 4
 
+    def for_policy(self, actions_per_call: int) -> PhysVLAConfig:
+        """The configuration for a policy that executes `actions_per_call` actions of each policy call
+        open loop (1: a single-step policy; ACT / Diffusion: their n_action_steps): chunk_phase_caps
+        become the phase caps where it is set and the policy executes chunks; else self unchanged."""
+        if self.chunk_phase_caps and actions_per_call > 1:
+            return self.replace(phase_caps=tuple(self.chunk_phase_caps), chunk_phase_caps=())
+        return self
+
     @property
     def lowpass_mask(self) -> tuple[bool, bool, bool, bool]:
         names = set(self.lowpass_phases.replace(" ", "").split(","))
@@ -304,6 +319,7 @@ class PhysVLAConfig:
             d["layout"] = dataclasses.asdict(self.layout)
         d["grasp_offset_m"] = list(self.grasp_offset_m)
         d["phase_caps"] = list(self.phase_caps)
+        d["chunk_phase_caps"] = list(self.chunk_phase_caps)
         return d
 
     @classmethod
@@ -317,7 +333,7 @@ class PhysVLAConfig:
             lay["pos"] = tuple(lay["pos"])
             lay["rot"] = tuple(lay.get("rot", ()))
             d["layout"] = ActionLayout(**lay)
-        for key in ("grasp_offset_m", "phase_caps"):
+        for key in ("grasp_offset_m", "phase_caps", "chunk_phase_caps"):
             if key in d:
                 d[key] = tuple(d[key])
         return cls(**d)

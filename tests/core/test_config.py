@@ -54,7 +54,19 @@ def test_presets_follow_the_paper_and_the_default_is_built_from_the_options():
                                  {"lowpass_phases": "approach,lunch"}, {"lowpass_alpha_max": 1.0},
                                  {"lowpass_rough_lo": 0.3, "lowpass_rough_hi": 0.2}, {"place_rule": "throw"},
                                  {"phase_ref": "elbow"}, {"veto_height_m": -0.1},
-                                 {"veto_reach_m": -0.1}])
+                                 {"veto_reach_m": -0.1}, {"chunk_phase_caps": (0, 0.05)},
+                                 {"chunk_phase_caps": (0, -0.05, 0, 1)}])
 def test_bad_options_are_rejected(bad):
     with pytest.raises(ValueError):
         PhysVLAConfig(**bad)
+
+
+def test_chunk_phase_caps_apply_only_to_a_policy_that_executes_chunks():
+    c = PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), chunk_phase_caps=(0.0, 0.05, 0.0, 1.0))
+    assert c.for_policy(1) is c and c.for_policy(1).caps == (0.0, 0.0, 0.0, 1.0)  # single-step: unchanged
+    chunked = c.for_policy(10)
+    assert chunked.caps == (0.0, 0.05, 0.0, 1.0) and chunked.chunk_phase_caps == ()
+    assert chunked.replace(phase_caps=c.phase_caps, chunk_phase_caps=c.chunk_phase_caps) == c  # nothing else moves
+    plain = PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0))
+    assert plain.for_policy(10) is plain  # no chunk caps: the same for every policy
+    assert PhysVLAConfig.from_dict(c.to_dict()) == c
