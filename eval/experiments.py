@@ -615,7 +615,9 @@ def learned_mid(args) -> None:
                        "(act_chunk's recipe with dim_model 64 / feedforward 256, and 32 / 128 with 2 heads: "
                        "train_backbones.py SMALLER) run whole on this CPU, and, a fifth round after those landed at 0-22 %, the "
                        "final checkpoints of two more widths between them and act_chunk's 128 (96 and 112), and, a sixth round after "
-                       "those landed at 6 % and 68 %, the 112-wide run's earlier checkpoints. "
+                       "those landed at 6 % and 68 %, the 112-wide run's earlier checkpoints, and, a seventh round after "
+                       "those went 14, 0, 56, 66 %, the 112-wide run resumed from its step 4800 saving every 400 steps "
+                       "(train_backbones.py RESUMED). "
                        f"Each ran uncorrected on init states {first}-{first + args.per_task - 1} of the 10 tasks (n = "
                        f"{10 * args.per_task}); the learned table reports the kept one on init states 0-4. Rule, "
                        "written before any of them ran: keep the candidate whose success here lies closest to 40 %, "
@@ -632,11 +634,13 @@ def learned_mid(args) -> None:
 EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3_others,confirm_default,confirm_others,"
                    "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,design7,confirm7,learned,learned_confirm,"
                    "learned_phys,learned_phys_confirm,design9,learned9,learned9_confirm,confirm9,design10,learned10,"
-                   "learned10_confirm,confirm10,learned11,learned11_confirm")
+                   "learned10_confirm,confirm10,learned11,learned11_confirm,design12,learned12,confirm12,"
+                   "learned12_confirm")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
-                  "learned10", "learned10_confirm", "learned11", "learned11_confirm"}
+                  "learned10", "learned10_confirm", "learned11", "learned11_confirm", "learned12",
+                  "learned12_confirm"}
 LEARNED = "act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,diffusion_chunk"
 
 
@@ -672,6 +676,7 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
                                   ("design7", ef.DESIGN_SEEDS, ef.DESIGN7),
                                   ("design9", ef.DESIGN_SEEDS, ef.DESIGN9),
                                   ("design10", ef.DESIGN_SEEDS, ef.DESIGN10),
+                                  ("design12", ef.DESIGN_SEEDS, ef.DESIGN12),
                                   ("confirm7", ef.CONFIRM7_SEEDS, ef.CONFIRM7)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
@@ -680,10 +685,14 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
         if stage in stages:  # init states 35-39, fresh failure draws (ef.CONFIRM9_BACKBONES)
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM9_BACKBONES[b]) for name, cfg in configs.items()
                       for b in ef.CONFIRM9_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
+    if "confirm12" in stages:  # init states 35-39, fresh failure draws seed + 2000 (ef.CONFIRM12_BACKBONES)
+        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM12_BACKBONES[b]) for name, cfg in ef.DESIGN12.items()
+                  for b in ef.CONFIRM12_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
     lift_stages = {"lift": ((ef.LIFT_DESIGN, ef.LIFT_CONFIRM), {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}),
                    "design7": ((ef.LIFT_DESIGN,), ef.DESIGN7), "confirm7": ((ef.LIFT_CONFIRM,), ef.CONFIRM7),
                    "design9": ((ef.LIFT_DESIGN,), ef.DESIGN9), "design10": ((ef.LIFT_DESIGN,), ef.DESIGN10),
-                   "confirm10": ((ef.LIFT_CONFIRM,), ef.DESIGN10)}
+                   "confirm10": ((ef.LIFT_CONFIRM,), ef.DESIGN10), "design12": ((ef.LIFT_DESIGN,), ef.DESIGN12),
+                   "confirm12": ((ef.LIFT_CONFIRM,), ef.DESIGN12)}
     for stage, (blocks, lift_cfgs) in lift_stages.items():
         if stage not in stages:
             continue
@@ -739,6 +748,10 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
         blocks.append((ef.DESIGN_SEEDS, [n for n in names if n in ef.LEARNED_CHUNKED], ef.DESIGN11))
     if "learned11_confirm" in stages:  # and on init states 10-14
         blocks.append((ef.CONFIRM11_SEEDS, [n for n in names if n in ef.LEARNED_CHUNKED], ef.DESIGN11))
+    if "learned12" in stages:  # candidate 12 (and candidate 10, its reference), every learned ACT, 0-4
+        blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN12))
+    if "learned12_confirm" in stages:  # and on init states 10-14
+        blocks.append((ef.CONFIRM11_SEEDS, names, ef.DESIGN12))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],

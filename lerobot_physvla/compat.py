@@ -74,7 +74,7 @@ def wrapped_libero_env_factories(wrap: Callable):
 
 def install_eval_hook(
     step_type: type,
-    make_step: Callable[[], object],
+    make_step: Callable[[int], object],
     on_done: Callable[[object, object], None],
     attach: Callable[[object], object],
     adapt_env: Callable[[object], object],
@@ -82,8 +82,8 @@ def install_eval_hook(
 ) -> None:
     """Replace lerobot-eval's `eval_main` (see module docstring).
 
-    step_type: the corrector step class (a postprocessor holding one keeps it); make_step() builds
-    one to append; attach(step) adapts one the checkpoint already has; adapt_env(env_cfg) returns
+    step_type: the corrector step class (a postprocessor holding one keeps it); make_step(n) builds
+    one to append for a policy that executes n actions per call (its n_action_steps, else 1); attach(step) adapts one the checkpoint already has; adapt_env(env_cfg) returns
     the env config to evaluate; on_done(cfg, step) runs after the evaluation with the parsed
     EvalPipelineConfig; before_rollout(step) runs before each of lerobot-eval's `rollout` calls
     (between rollout batches, never inside a control tick).
@@ -105,7 +105,9 @@ def install_eval_hook(
             pre, post = original_factory(*args, **kwargs)
             step = next((s for s in post.steps if isinstance(s, step_type)), None)
             if step is None:
-                step = make_step()
+                policy_cfg = args[0] if args else kwargs.get("policy_cfg")
+                # actions the policy executes open loop per call (ACT / Diffusion: n_action_steps)
+                step = make_step(int(getattr(policy_cfg, "n_action_steps", 1) or 1))
                 post.steps.append(step)
             else:
                 step = attach(step)

@@ -21,6 +21,7 @@ GRIPPER_RULES: tuple[str, ...] = ("blend", "veto")
 CHUNK_MODES: tuple[str, ...] = ("all", "first")
 PLACE_RULES: tuple[str, ...] = ("decelerate", "redirect", "release_veto")
 PHASE_REFS: tuple[str, ...] = ("eef", "object")
+ASSIST_STILL: tuple[str, ...] = ("action", "hand")  # what makes a hold still for the release assist
 LOWPASS_RULES: tuple[str, ...] = ("off", "adaptive")
 LOWPASS_SPACES: tuple[str, ...] = ("action", "target")
 PHASE_NAMES: tuple[str, ...] = ("approach", "grasp", "transport", "place")
@@ -176,6 +177,10 @@ class PhysVLAConfig:
             assist_steps control steps, commanding closed; kept open while the phase stays place.
             Metres; 0 = off (corrections/release_assist.py: the traced failure).
         assist_steps: control steps in a row the hold must last before release_assist_m opens.
+        assist_still: what makes a hold still for release_assist_m: action (every position
+            channel of the policy's command below 0.05 action units, each step) | hand (the
+            end effector within 3 mm of where the hold began, whatever the policy commands: a
+            chunked ACT that holds still commands a small swing inside each chunk).
         phase_ref: what d_tgt_xy of eq. (3) measures from once the object is lifted: eef (paper)
             | object (the held object's centre; a rim grasp holds it centimetres off the hand).
         lowpass: off | adaptive: a low-pass on the executed position channels whose strength
@@ -223,6 +228,7 @@ class PhysVLAConfig:
     release_carry: bool = False
     release_assist_m: float = 0.0
     assist_steps: int = 10
+    assist_still: str = "action"
     phase_ref: str = "eef"
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
@@ -244,6 +250,7 @@ class PhysVLAConfig:
             ("chunk", self.chunk, CHUNK_MODES),
             ("place_rule", self.place_rule, PLACE_RULES),
             ("phase_ref", self.phase_ref, PHASE_REFS),
+            ("assist_still", self.assist_still, ASSIST_STILL),
             ("lowpass", self.lowpass, LOWPASS_RULES),
             ("lowpass_space", self.lowpass_space, LOWPASS_SPACES),
         ):

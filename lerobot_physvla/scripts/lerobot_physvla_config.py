@@ -21,6 +21,7 @@ which `lerobot-rollout --policy.path=POLICY_DIR --policy.postprocess=physvla` ap
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -49,7 +50,10 @@ def add_corrector(policy_dir: str | Path, cfg: PhysVLAConfig) -> Path:
             steps=[], name="policy_postprocessor", to_transition=policy_action_to_transition,
             to_output=transition_to_policy_action,
         )
-    post.steps.append(PhysVLACorrectorStep(config=cfg.to_dict()))
+    steps = 1  # actions the policy executes open loop per call (its n_action_steps): chunk_phase_caps
+    if (d / "config.json").is_file():
+        steps = int(json.loads((d / "config.json").read_text()).get("n_action_steps", 1) or 1)
+    post.steps.append(PhysVLACorrectorStep(config=cfg.for_policy(steps).to_dict()))
     post.save_pretrained(d, config_filename=POSTPROCESSOR)
     return d / POSTPROCESSOR
 

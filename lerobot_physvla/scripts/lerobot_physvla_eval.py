@@ -112,8 +112,8 @@ def activate_eval(argv: list[str]) -> None:
             step.listeners.append(step._physvla_recorder)
         return step
 
-    def make_step():
-        return attach(PhysVLACorrectorStep(config=cfg.to_dict()))
+    def make_step(actions_per_call: int = 1):  # the configuration for this policy (chunk_phase_caps)
+        return attach(PhysVLACorrectorStep(config=cfg.for_policy(actions_per_call).to_dict()))
 
     def before_rollout(step):  # compact the finished rollout batch here, not in the next batch's first tick
         recorder = getattr(step, "_physvla_recorder", None)

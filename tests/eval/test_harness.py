@@ -115,3 +115,27 @@ def test_a_draw_offset_gives_fresh_failure_draws_on_the_same_init_states():
     assert draws(failure, 3) == draws({**failure, "draw_offset": 0}, 3)  # the default: today's draws
     assert draws({**failure, "draw_offset": 1000}, 3) == draws(failure, 1003)
     assert draws({**failure, "draw_offset": 1000}, 3) != draws(failure, 3)
+
+
+def test_a_chunked_policy_gets_the_chunk_caps_and_every_other_backbone_the_caps(monkeypatch):
+    """Candidate 11 is candidate 10 for every backbone that does not execute chunks: the harness builds
+    each unit's corrector for its policy (PhysVLAConfig.for_policy with the policy's n_action_steps)."""
+    import harness
+    from lerobot_physvla.core.config import preset
+
+    built = []
+    from types import SimpleNamespace
+
+    from lerobot_physvla.core.config import LIBERO_OSC_POSE
+
+    monkeypatch.setattr(harness, "_scene", lambda name: SimpleNamespace(layout=LIBERO_OSC_POSE, expert={}))
+    monkeypatch.setattr("lerobot_physvla.core.corrector.Corrector", lambda cfg: built.append(cfg))
+    cfg = preset("default", chunk_phase_caps=(0.0, 0.05, 0.0, 1.0))
+    ckpts = Path(__file__).resolve().parents[2] / "policies" / "checkpoints"
+    for policy in ("", str(ckpts / "act_single"), str(ckpts / "act_chunk")):
+        unit = Unit("expert_clean" if not policy else Path(policy).name, "c", cfg.to_dict(), 0, 0, 0, policy=policy)
+        harness.compute_unit(unit)
+    expert, single, chunked = built
+    assert expert.caps == single.caps == (0.0, 0.0, 0.0, 1.0)  # act_single: n_action_steps 1
+    assert chunked.caps == (0.0, 0.05, 0.0, 1.0)  # act_chunk executes 10 of its 20-step chunk
+    assert chunked.replace(phase_caps=(0.0, 0.0, 0.0, 1.0), chunk_phase_caps=cfg.chunk_phase_caps) == cfg

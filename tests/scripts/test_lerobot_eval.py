@@ -48,7 +48,8 @@ def test_corrected_state_only_run_executes_exactly_what_the_corrector_says(polic
     state_only = ["--env.type=libero_physvla", "--env.cameras=false", "--eval.n_episodes=4",
                   "--eval.batch_size=2", "--env.episode_length=12"]
     r = _eval(policies["state"], out, [*state_only, "--policy.postprocess=physvla", "--physvla.mode=phys_el",
-                                       "--physvla.gripper_rule=veto"], {"PHYSVLA_SAVE_STATES": "1"})
+                                       "--physvla.gripper_rule=veto", "--physvla.chunk_phase_caps=0,0.05,0,1"],
+              {"PHYSVLA_SAVE_STATES": "1"})
     # the summary table is printed and the report links a plot per episode
     assert "4 episodes, 48 frames, success 0/4" in r.stdout and "corrector overhead per env-step" in r.stdout
     report = (out / "physvla_report.md").read_text()
@@ -58,6 +59,8 @@ def test_corrected_state_only_run_executes_exactly_what_the_corrector_says(polic
     assert info["overall"]["n_episodes"] == 4
     diag = json.loads((out / "physvla_diagnostics.json").read_text())
     assert diag["episodes"] == 4 and diag["physvla_config"]["gripper_rule"] == "veto"
+    # the random ACT executes its chunks (n_action_steps 10): the chunk caps are the caps it was corrected with
+    assert diag["physvla_config"]["phase_caps"] == [0, 0.05, 0, 1] and diag["physvla_config"]["chunk_phase_caps"] == []
     assert diag["passthrough"] == {} and diag["steps"] == 48
     episodes = [json.loads(line) for line in (out / "physvla_episodes.jsonl").read_text().splitlines()]
     npz = np.load(out / "physvla_states.npz")

@@ -33,15 +33,16 @@ N_GEO = 12
 # p
 (BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M, LIFT_BIAS_U, ALPHA_TRANSPORT, D_THRESH_M, METRES_PER_UNIT,
  GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL, PLACE_RULE, REDIRECT_GAIN, PHASE_REF_OBJECT, REDIRECT_TOL_M,
- HOLD_STEPS, RELEASE_CARRY, ASSIST_M, ASSIST_STEPS) = range(20)
-N_PARAMS = 20
+ HOLD_STEPS, RELEASE_CARRY, ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND) = range(21)
+N_PARAMS = 21
 # mem
 EMA = 0  # 3 entries: x, y, z, action units
 ACTIVE = 3  # 1.0 once the EMA holds a value (transport: the previous step was in transport)
 HOLD = 4  # place_rule=release_veto: control steps the release has been held back in a row
 CARRIED = 5  # release_carry: 1.0 while the object carried to the place phase is still at the hand
 STALL = 6  # release_assist_m: control steps in a row the object has been held still over the target
-N_MEM = 7
+ANCHOR = 7  # 3 entries: assist_still=hand: the end effector where the hold began, m
+N_MEM = 10
 CARRY_REACH_M = 0.10  # release_carry: the object counts as at the hand within this of it (3-D), m
 
 
@@ -70,4 +71,5 @@ def params(cfg: PhysVLAConfig, layout: ActionLayout) -> np.ndarray:
     p[RELEASE_CARRY] = cfg.release_carry
     p[ASSIST_M] = cfg.release_assist_m
     p[ASSIST_STEPS] = cfg.assist_steps
+    p[ASSIST_STILL_HAND] = cfg.assist_still == "hand"
     return p

@@ -4,6 +4,7 @@ paper; release_assist_m > 0, with place_rule=release_veto).
     on target:  |p_obj_xy - p_tgt_xy| <= tol,  -tol <= p_obj_z - p_tgt_z <= h        (metres)
     a surface:  |p_tgt_z - z_rest| <= SUPPORT_M  (the target lies at the object's resting level)
     still:      max_k |a_raw_pos,k| < STILL_U while the policy commands closed         (action units)
+                (assist_still=hand: |p_eef - p_eef(hold began)| <= STILL_M instead      (metres))
     after `assist_steps` control steps in a row on target, on a surface and still:
         gripper <- open, and kept open while the phase stays place
 
@@ -15,14 +16,22 @@ still with the gripper closed over the target), and a target in the air (robosui
 above the cube) is no surface, so a lifted object is never let go there. The release veto's
 tolerance (redirect_tol_m) says what "on target" is, so the two rules agree: a release this rule
 makes is one the veto would let through.
+
+assist_still=hand (candidate 12): traced on the chunked ACTs under the shipped default (design block
+0-4), holds that met every other condition were never let go because the policy's command is not
+still inside a chunk: its z swings from -0.04 to +0.065 action units within each 10-step chunk (the
+last actions of a chunk above STILL_U) while the hand moves less than 2 mm in 30 steps, so the
+count restarted every chunk and never reached assist_steps. The hand's own position is what "held
+still" means; the command is a proxy for it.
 """
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import (ASSIST_M, ASSIST_STEPS, GRIPPER, GRIPPER_OPEN, LIFT, OBJ,
-                                                   REDIRECT_TOL_M, STALL, TGT)
+from lerobot_physvla.core.corrections.base import (ANCHOR, ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND, EEF, GRIPPER,
+                                                   GRIPPER_OPEN, LIFT, OBJ, REDIRECT_TOL_M, STALL, TGT)
 
 STILL_U = 0.05  # the policy commands no motion: every position channel below this, action units
+STILL_M = 0.003  # assist_still=hand: the hand stays within this of where the hold began, metres
 SUPPORT_M = 0.05  # the target is a surface: within this of the object's resting height, metres
 
 
@@ -41,12 +50,22 @@ def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
     dz = geo[OBJ + 2] - geo[TGT + 2]
     rest_z = geo[OBJ + 2] - geo[LIFT]
     still = True
-    for k in range(3):
-        if abs(a_raw[idx[k]]) >= STILL_U:
-            still = False
+    if p[ASSIST_STILL_HAND] > 0.5:  # the hand within STILL_M of where the hold began (its first step: still)
+        if mem[STALL] > 0.0:
+            moved = 0.0
+            for k in range(3):
+                moved += (geo[EEF + k] - mem[ANCHOR + k]) ** 2
+            still = moved <= STILL_M * STILL_M
+    else:
+        for k in range(3):
+            if abs(a_raw[idx[k]]) >= STILL_U:
+                still = False
     stalled = (closed and still and ex * ex + ey * ey <= tol * tol and -tol <= dz <= p[ASSIST_M]
                and abs(geo[TGT + 2] - rest_z) <= SUPPORT_M)
     if stalled and mem[STALL] + 1.0 >= p[ASSIST_STEPS]:
         a_phys[g] = p[GRIPPER_OPEN]
     if commit:
+        if stalled and mem[STALL] == 0.0:
+            for k in range(3):
+                mem[ANCHOR + k] = geo[EEF + k]
         mem[STALL] = mem[STALL] + 1.0 if stalled else 0.0
