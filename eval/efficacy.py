@@ -101,7 +101,7 @@ CANDIDATE_11 = "default + chunked grasp guidance"
 # candidate 12: candidate 10 (the shipped default) whose release assist judges a hold still by the
 # hand (within 3 mm of where the hold began) instead of by the policy's command (every position
 # channel below 0.05 action units each step). Grounded in candidate 11's failures on the design block,
-# classified by how they end: of act_chunk_weak's 26 and act_chunk_mid's 22, 8 end with the bowl held
+# classified by how they end: of act_chunk_weak's 26 and act_chunk_mid's 22, 7 end with the bowl held
 # still within 2 cm of the plate's centre and at most 4 cm above it, gripper closed, the hand moving
 # less than 2 mm in the last 30 steps: the assist's every condition but one. Traced (act_chunk_weak
 # task 1 / init state 3, task 8 / 0; act_chunk_mid task 0 / 3): the ACT's z command swings from -0.04

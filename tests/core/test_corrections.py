@@ -259,6 +259,35 @@ def test_release_assist_opens_only_after_a_still_hold_over_a_surface_target_and_
     np.testing.assert_array_equal(run(release_assist, moving, idx, geo, p, mem)[:6], moving[:6])  # arm the policy's
 
 
+def test_release_assist_judged_by_the_hand_opens_a_hold_whose_command_swings_inside_each_chunk():
+    """assist_still=hand (candidate 12): the traced chunked-ACT hold commands z from -0.04 to +0.065 inside
+    each 10-step chunk while its hand stays put; by the command the count restarts every chunk and
+    never opens, by the hand it opens; a hand that drifts 4 mm restarts it."""
+    from lerobot_physvla.core.corrections.base import EEF, LIFT, STALL, TGT
+    from lerobot_physvla.core.corrections.release_assist import release_assist
+
+    swing = [-0.04, -0.04, -0.035, -0.03, 0.0, 0.02, 0.023, 0.03, 0.057, 0.065]  # one chunk's z, traced
+    outs = {}
+    for still in ("action", "hand"):
+        idx, geo, p, mem = ctx(place_rule="release_veto", redirect_tol_m=0.02, release_assist_m=0.04,
+                               assist_still=still)  # assist_steps: the default 10
+        geo[TGT:TGT + 3] = (0.12, -0.01, 0.902)
+        geo[OBJ:OBJ + 3] = (0.129, -0.01, 0.920)  # 0.9 cm off, 1.8 cm above: act_chunk_weak task 1 / 3
+        geo[LIFT] = 0.022
+        outs[still] = [run(release_assist, [0.01, 0.012, z, 0, 0, 0, 1.0], idx, geo, p, mem)[6] for z in swing * 3]
+    assert outs["action"] == [1.0] * 30  # the count restarts at the chunk's last two steps: never opens
+    assert outs["hand"][:9] == [1.0] * 9 and outs["hand"][9] == -1.0  # the tenth still step opens
+    # a drifting hand: 4 mm from where the hold began restarts the count (and re-anchors there)
+    idx, geo, p, mem = ctx(place_rule="release_veto", redirect_tol_m=0.02, release_assist_m=0.04,
+                           assist_still="hand", assist_steps=3)
+    geo[TGT:TGT + 3], geo[OBJ:OBJ + 3], geo[LIFT] = (0.12, -0.01, 0.902), (0.129, -0.01, 0.920), 0.022
+    hold = [0.0, 0.0, 0.0, 0, 0, 0, 1.0]
+    assert run(release_assist, hold, idx, geo, p, mem)[6] == 1.0 and mem[STALL] == 1
+    geo[EEF] += 0.004
+    assert run(release_assist, hold, idx, geo, p, mem)[6] == 1.0 and mem[STALL] == 0
+    assert [run(release_assist, hold, idx, geo, p, mem)[6] for _ in range(3)] == [1.0, 1.0, -1.0]
+
+
 @pytest.mark.parametrize("case", ["moving", "off_target", "too_high", "target_in_the_air", "already_open"])
 def test_release_assist_leaves_every_other_hold_alone(case):
     from lerobot_physvla.core.corrections.base import LIFT, STALL, TGT
