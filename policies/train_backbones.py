@@ -169,7 +169,8 @@ CPU_DRAW_DIR = "cpu_full"  # where, under the training root, the whole CPU runs 
 # name -> the kept candidate: (its run's directory under the training root, step), as
 # eval/results/learned_mid chose it (a test recomputes the choice from that file's units). A sibling
 # whose pick lies outside 30-50 % on init states 5-9 is no backbone and is not named here:
-# act_chunk_mid2's pick over its six rounds is act_chunk_w112@007200, 56 % [42, 69].
+# act_chunk_mid2's pick over its seven rounds is act_chunk_w112@007200, 56 % [42, 69] (the seventh's
+# candidates, act_chunk_w112_fine@5200 .. 6800: 4, 8, 0, 0, 6 %).
 MID_CHOICE: dict[str, tuple[str, int]] = {"act_single_mid": (f"{CPU_DRAW_DIR}/act_single", 20000),
                                           "act_chunk_mid": ("act_chunk_mid", 1200)}
 
