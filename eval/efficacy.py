@@ -57,9 +57,10 @@ CANDIDATE_3 = "default, redirect_tol=0.015"
 # single-step ACT its place redirection, which steered the held object onto the target's exact
 # centre for the whole place phase, cost 30 pp (section 7). Its units ran as "default", renamed.
 DEFAULT_V2 = "default v2"
-# candidate 6 (the shipped default from 2026-11-24 until candidate 10), frozen: the earlier candidates
+# candidate 6 (the shipped default from 2026-11-24 until candidate 10), frozen (the release assist and the way it
+# judges a hold still, candidates 10 and 12, off): the earlier candidates
 # are written as changes of it, and its units on disk keep matching it whatever the preset becomes
-DEFAULT_6 = PRESETS["default"].replace(release_assist_m=0.0)
+DEFAULT_6 = PRESETS["default"].replace(release_assist_m=0.0, assist_still="action")
 V2 = DEFAULT_6.replace(place_rule="redirect", redirect_tol_m=0.0, veto_reopen=True, release_carry=False)
 # candidate 4, the third shipped default (v2 with the release veto in place of the redirection). Its
 # units first ran as "default, release_veto=0.02", were renamed "default" when it shipped and

@@ -21,7 +21,7 @@ from lerobot_physvla import metrics
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "eval" / "results"
 START, END = "<!-- headline:start -->", "<!-- headline:end -->"
-MODES = ("baseline", "temporal", "phys", "phys_el", "default", "default + release assist")  # the last: the shipped default since candidate 10, by its eval/efficacy.py name
+MODES = ("baseline", "temporal", "phys", "phys_el", "default", "default + release assist, hand still")  # the last: the shipped default since candidate 12, by its eval/efficacy.py name
 
 
 def _records(name: str) -> list[dict] | None:
@@ -105,17 +105,25 @@ def efficacy_table() -> list[str]:
     if not recs:
         return []
     lines = []
-    fresh = [r for r in recs if r["backbone"] in ef.CONFIRM9_BACKBONES and r["seed"] in ef.CONFIRM9_SEEDS
-             and r["config"] in ("baseline", ef.CANDIDATE_6, ef.CANDIDATE_10)]
-    if sum(r["config"] == ef.CANDIDATE_10 for r in fresh) >= 50 * len(ef.CONFIRM9_BACKBONES):
-        lines += ["**LIBERO-Spatial, init states 35-39 with fresh failure draws (seed + 1000), the shipped default's "
-                  "(candidate 10, `default + release assist`) confirmation block for the experts; no decision looked "
-                  "at these episodes (10 tasks, n = 50 pairs per cell)** ([eval/results/efficacy]"
-                  "(eval/results/efficacy/README.md) section 3i): success; paired difference against baseline "
-                  "[95 % CI]; jerk relative to baseline's\n",
-                  f"| backbone | baseline | {ef.CANDIDATE_6} (candidate 6) | {ef.CANDIDATE_10} |", "|---|---|---|---|"]
-        for b in ef.CONFIRM9_BACKBONES:
-            ps = [ef.paired(fresh, c, b) for c in (ef.CANDIDATE_6, ef.CANDIDATE_10)]
+    fresh = [r for r in recs if r["backbone"] in ef.CONFIRM12_BACKBONES and r["seed"] in ef.CONFIRM9_SEEDS
+             and r["config"] in ("baseline", ef.CANDIDATE_10, ef.CANDIDATE_12)]
+    learned = [r for f in sorted((RESULTS / "learned" / "units").glob("*__s10-14.json"))  # the efficacy stage's units
+               for r in json.loads(f.read_text())["records"]
+               if r["config"] in ("baseline", ef.CANDIDATE_10, ef.CANDIDATE_12)]
+    if sum(r["config"] == ef.CANDIDATE_12 for r in fresh) >= 50 * len(ef.CONFIRM12_BACKBONES):
+        lines += ["**LIBERO-Spatial, the shipped default's (candidate 12, `default + release assist, hand still`) "
+                  f"confirmation blocks; no decision about it looked at these episodes: the experts on init states "
+                  f"35-39 with fresh failure draws (seed + {ef.FRESH_DRAWS_12}), the learned ACTs on init states 10-14 "
+                  "(where their demonstrations were recorded; 40-49 stay untouched) (10 tasks, n = 50 pairs per "
+                  "cell)** ([eval/results/efficacy](eval/results/efficacy/README.md) section 3k): success; paired "
+                  "difference against baseline [95 % CI]; jerk relative to baseline's\n",
+                  f"| backbone | baseline | {ef.CANDIDATE_10} (candidate 10) | {ef.CANDIDATE_12} |", "|---|---|---|---|"]
+        blocks = [(b, fresh) for b in ef.CONFIRM12_BACKBONES]
+        blocks += [(b, learned) for b in dict.fromkeys(r["backbone"] for r in learned if r["config"] == ef.CANDIDATE_12)]
+        for b, rs in blocks:
+            ps = [ef.paired(rs, c, b) for c in (ef.CANDIDATE_10, ef.CANDIDATE_12)]
+            if min(p["n"] for p in ps) < 50:
+                continue
             cells = [f"{p['success']:.0%} ({p['diff'] * 100:+.0f} pp [{p['ci'][0] * 100:+.0f}, "
                      f"{p['ci'][1] * 100:+.0f}]; jerk x{p['jerk_ratio']:.2f})" for p in ps]
             lines.append(f"| {b} | {ps[0]['base_success']:.0%} | " + " | ".join(cells) + " |")

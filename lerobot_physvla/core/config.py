@@ -359,11 +359,13 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # a closed one: it may hold the object), the release veto where the held object would land more
     # than 2 cm off the target (kept in force while a carried object is set down: release_carry), and
     # the release assist: a policy that holds the object still over the target, closed, is let go
-    # (candidate 10, shipped 2026-11-25: docs/method.md)
+    # (candidate 10, shipped 2026-11-25), a hold judged still by the hand, not by the command (candidate 12,
+    # shipped 2026-11-25: a chunked ACT's command swings inside each chunk while its hand holds still;
+    # docs/method.md)
     "default": PhysVLAConfig(
         mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
         veto_reach_m=0.10, veto_reopen=False, place_rule="release_veto", redirect_tol_m=0.02, release_carry=True,
-        phase_ref="object", release_assist_m=0.04,
+        phase_ref="object", release_assist_m=0.04, assist_still="hand",
     ),
 }
 # on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the
