@@ -499,6 +499,30 @@ def _lift_successes(records, first: int, config: str) -> dict[str, int]:
     return out
 
 
+def _against(recs, cand: str, b: str, ref: str, label: str, rows: list[str]) -> dict | None:
+    """Appends the rows of `cand` on backbone b against baseline and against `ref`; returns the paired
+    result against `ref`, or None when a cell of the block is missing."""
+    for base in ("baseline", ref):
+        p = paired(recs, cand, b, base)
+        if p["n"] < FULL_CELL:
+            return None
+        rows.append(paired_row(f"{b} / {label} vs {base}", p))
+    return p
+
+
+def _differences(recs, cand: str, ref: str, b: str) -> list[float]:
+    """Per-pair success differences of `cand` against `ref` on backbone b (for a pooled interval)."""
+    by = {(r["config"], r["task_id"], r["seed"]): r["success"] for r in recs if r["backbone"] == b}
+    return [float(by[(cand, t, s_)]) - float(by[(ref, t, s_)]) for (c, t, s_) in by if c == cand and (ref, t, s_) in by]
+
+
+def _pooled_row(pool: list[float], what: str, label: str, ref: str) -> tuple[str, bool]:
+    mean, half = float(np.mean(pool)), 1.96 * float(np.std(pool, ddof=1)) / np.sqrt(len(pool))
+    return (f"| {what} pooled / {label} vs {ref} | {len(pool)} | | | {mean * 100:+.1f} pp "
+            f"[{(mean - half) * 100:+.1f}, {(mean + half) * 100:+.1f}] | {sum(d > 0 for d in pool)} / "
+            f"{sum(d < 0 for d in pool)} / | | |"), mean - half > 0
+
+
 def candidate_verdict(records, learned, seeds, expert_names, lift_first: int, cand: str = CANDIDATE_10,
                       ref: str = CANDIDATE_6, label: str = "candidate 10") -> tuple[list[str], bool | None]:
     """A candidate against its reference (the shipped default when it ran: candidate 10 against 6,
@@ -507,30 +531,19 @@ def candidate_verdict(records, learned, seeds, expert_names, lift_first: int, ca
     recs, lrecs = _block(records, seeds), _block(list(learned), seeds)
     rows, ok, pool = [], True, []
     for b in expert_names:
-        for base in ("baseline", ref):
-            p = paired(recs, cand, b, base)
-            if p["n"] < FULL_CELL:
-                return rows, None
-            rows.append(paired_row(f"{b} / {label} vs {base}", p))
-            ok &= base == "baseline" or p["won"] - p["lost"] >= -1
+        if (p := _against(recs, cand, b, ref, label, rows)) is None:
+            return rows, None
+        ok &= p["won"] - p["lost"] >= -1
     for b in dict.fromkeys(r["backbone"] for r in lrecs if r["config"] == cand):
-        for base in ("baseline", ref):
-            p = paired(lrecs, cand, b, base)
-            if p["n"] < FULL_CELL:
-                return rows, None
-            rows.append(paired_row(f"{b} / {label} vs {base}", p))
-            if base == ref:
-                ok &= p["won"] - p["lost"] >= -1
-                by = {(r["config"], r["task_id"], r["seed"]): r["success"] for r in lrecs if r["backbone"] == b}
-                pool += [float(by[(cand, t, s_)]) - float(by[(ref, t, s_)])
-                         for (c, t, s_) in by if c == cand and (ref, t, s_) in by]
+        if (p := _against(lrecs, cand, b, ref, label, rows)) is None:
+            return rows, None
+        ok &= p["won"] - p["lost"] >= -1
+        pool += _differences(lrecs, cand, ref, b)
     if not pool:
         return rows, None
-    mean, half = float(np.mean(pool)), 1.96 * float(np.std(pool, ddof=1)) / np.sqrt(len(pool))
-    rows.append(f"| learned ACTs pooled / {label} vs {ref} | {len(pool)} | | | {mean * 100:+.1f} pp "
-                f"[{(mean - half) * 100:+.1f}, {(mean + half) * 100:+.1f}] | {sum(d > 0 for d in pool)} / "
-                f"{sum(d < 0 for d in pool)} / | | |")
-    ok &= mean - half > 0
+    row, above = _pooled_row(pool, "learned ACTs", label, ref)
+    rows.append(row)
+    ok &= above
     got, base_got = _lift_successes(records, lift_first, cand), _lift_successes(records, lift_first, ref)
     if set(got) != {"lift sigma=0.00", "lift sigma=0.40", "fetch sigma=0.00", "fetch sigma=0.40"} or set(base_got) != set(got):
         return rows, None
@@ -545,21 +558,12 @@ def candidate11_verdict(learned, seeds) -> tuple[list[str], bool | None]:
     rule's verdict (DESIGN11's comment), or None when a cell of the block is missing."""
     lrecs, rows, ok, pool = _block(list(learned), seeds), [], True, []
     for b in LEARNED_CHUNKED:
-        for base in ("baseline", CANDIDATE_10):
-            p = paired(lrecs, CANDIDATE_11, b, base)
-            if p["n"] < FULL_CELL:
-                return rows, None
-            rows.append(paired_row(f"{b} / candidate 11 vs {base}", p))
-        p = paired(lrecs, CANDIDATE_11, b, CANDIDATE_10)
+        if (p := _against(lrecs, CANDIDATE_11, b, CANDIDATE_10, "candidate 11", rows)) is None:
+            return rows, None
         ok &= p["won"] - p["lost"] >= -1
-        by = {(r["config"], r["task_id"], r["seed"]): r["success"] for r in lrecs if r["backbone"] == b}
-        pool += [float(by[(CANDIDATE_11, t, s_)]) - float(by[(CANDIDATE_10, t, s_)])
-                 for (c, t, s_) in by if c == CANDIDATE_11 and (CANDIDATE_10, t, s_) in by]
-    mean, half = float(np.mean(pool)), 1.96 * float(np.std(pool, ddof=1)) / np.sqrt(len(pool))
-    rows.append(f"| chunked ACTs pooled / candidate 11 vs {CANDIDATE_10} | {len(pool)} | | | {mean * 100:+.1f} pp "
-                f"[{(mean - half) * 100:+.1f}, {(mean + half) * 100:+.1f}] | {sum(d > 0 for d in pool)} / "
-                f"{sum(d < 0 for d in pool)} / | | |")
-    return rows, ok and mean - half > 0
+        pool += _differences(lrecs, CANDIDATE_11, CANDIDATE_10, b)
+    row, above = _pooled_row(pool, "chunked ACTs", "candidate 11", CANDIDATE_10)
+    return [*rows, row], ok and above
 
 
 def report(out, records, secs, n_units, header, write, learned=()) -> None:
