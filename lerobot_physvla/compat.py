@@ -83,8 +83,9 @@ def install_eval_hook(
     """Replace lerobot-eval's `eval_main` (see module docstring).
 
     step_type: the corrector step class (a postprocessor holding one keeps it); make_step(n) builds
-    one to append for a policy that executes n actions per call (its n_action_steps, else 1); attach(step) adapts one the checkpoint already has; adapt_env(env_cfg) returns
-    the env config to evaluate; on_done(cfg, step) runs after the evaluation with the parsed
+    one to append for a policy that executes n actions per call (its n_action_steps, else 1);
+    attach(step) adapts one the checkpoint already has; adapt_env(env_cfg) returns the env config
+    to evaluate; on_done(cfg, step) runs after the evaluation with the parsed
     EvalPipelineConfig; before_rollout(step) runs before each of lerobot-eval's `rollout` calls
     (between rollout batches, never inside a control tick).
     """
