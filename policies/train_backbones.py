@@ -38,6 +38,8 @@ the 30-50 % band #9 asks for; the `_mid` siblings (`CONTINUED`, `CPU_DRAW`, `MID
     .venv/bin/python policies/train_backbones.py act_chunk_w96 --out outputs/train/cpu_full   # fifth round
     .venv/bin/python policies/train_backbones.py act_chunk_w112 --out outputs/train/cpu_full
     .venv/bin/python policies/train_backbones.py act_chunk_w112_fine   # seventh round: resumes it from 4800
+    .venv/bin/python policies/train_backbones.py act_chunk_few5 --out outputs/train/cpu_full   # eighth: FEWER
+    .venv/bin/python policies/train_backbones.py act_chunk_few10 --out outputs/train/cpu_full
     .venv/bin/python eval/experiments.py learned_mid --learned act_single_mid,act_chunk_mid,act_chunk_mid2
 
 Normalisation: lerobot 0.6.1's ACT and Diffusion configs normalise only the VISUAL, STATE and
@@ -164,7 +166,23 @@ SMALLER: dict[str, tuple[str, tuple[str, ...], tuple[int, ...]]] = {
 }
 SMALLER_OF: dict[str, tuple[str, ...]] = {"act_chunk_mid2": ("act_chunk_small", "act_chunk_tiny", "act_chunk_w96",
                                                              "act_chunk_w112")}
-MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW, *RESUMED_OF, *SMALLER_OF]))  # every `_mid` sibling
+# Eighth round, after seven rounds of checkpoints and widths put no chunked candidate in the band (each
+# either below 22 % or above 55 % on init states 5-9: the bowl's release switches on in most tasks
+# at once): act_chunk's recipe (same model, seed, steps) on fewer demonstrations, lerobot-train
+# `--dataset.episodes`: per task and DART noise level only its first k recorded episodes (the lowest
+# init states that succeeded; the dataset's normalisation statistics stay the whole dataset's),
+# k = 5 and 10 (81 and 161 of the 431 episodes: T4 and T6 have few). Every demonstration still ends in a release,
+# so the skill is learned; what data lacks is coverage of the starts, which should lower success
+# by the init states a policy cannot reach rather than by a skill it lacks. Every checkpoint of both
+# runs is a candidate, fixed before either trained; the same rule keeps one of all candidates of
+# every round. fewer-data run -> (the recipe it trains, episodes kept per task and noise level,
+# the steps of its run that are candidates)
+FEWER: dict[str, tuple[str, int, tuple[int, ...]]] = {
+    "act_chunk_few5": ("act_chunk", 5, (2400, 4800, 7200, 9600, 12000)),
+    "act_chunk_few10": ("act_chunk", 10, (2400, 4800, 7200, 9600, 12000)),
+}
+FEWER_OF: dict[str, tuple[str, ...]] = {"act_chunk_mid2": ("act_chunk_few5", "act_chunk_few10")}
+MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW, *RESUMED_OF, *SMALLER_OF, *FEWER_OF]))  # every `_mid` sibling
 CPU_DRAW_DIR = "cpu_full"  # where, under the training root, the whole CPU runs are
 # name -> the kept candidate: (its run's directory under the training root, step), as
 # eval/results/learned_mid chose it (a test recomputes the choice from that file's units). A sibling
@@ -192,10 +210,11 @@ def mid_candidates(name: str, out_root: str = "outputs/train") -> dict[str, Path
         run = Path(out_root) / CPU_DRAW_DIR / resumed
         for step in range(start + every, stop, every):
             found[f"{resumed}@{step:06d}"] = run / "checkpoints" / f"{step:06d}" / "pretrained_model"
-    for small in SMALLER_OF.get(name, ()):
-        run = Path(out_root) / CPU_DRAW_DIR / small / "checkpoints"
-        for step in SMALLER[small][2]:
-            found[f"{small}@{step:06d}"] = run / f"{step:06d}" / "pretrained_model"
+    for run_name, steps in [(s, SMALLER[s][2]) for s in SMALLER_OF.get(name, ())] + \
+                           [(f, FEWER[f][2]) for f in FEWER_OF.get(name, ())]:
+        run = Path(out_root) / CPU_DRAW_DIR / run_name / "checkpoints"
+        for step in steps:
+            found[f"{run_name}@{step:06d}"] = run / f"{step:06d}" / "pretrained_model"
     return {k: p for k, p in found.items() if (p / "model.safetensors").exists()}
 
 
@@ -206,6 +225,26 @@ def choose_mid(success: dict[str, float], target: float = 0.40) -> str:
         raise ValueError("choose_mid: no checkpoint evaluated")
     order = {k: i for i, k in enumerate(success)}
     return min(success, key=lambda k: (round(abs(success[k] - target), 9), int(k.rsplit("@", 1)[1]), order[k]))
+
+
+def first_episodes(dataset: str, k: int) -> list[int]:
+    """The dataset's episode indices that FEWER keeps: the first k of each run of consecutive episodes
+    of one task (record_dataset.py writes them per noise level, then per task, by init state)."""
+    import pandas as pd
+
+    files = sorted((Path(dataset) / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    if not files:
+        raise SystemExit(f"train_backbones: no episode metadata under {dataset}/meta/episodes; run "
+                         "policies/record_dataset.py first")
+    meta = pd.concat([pd.read_parquet(f, columns=["episode_index", "tasks"]) for f in files])
+    kept, prev, run = [], None, 0
+    for idx, tasks in zip(meta["episode_index"], meta["tasks"]):
+        task = tuple(tasks)
+        run = run + 1 if task == prev else 1
+        prev = task
+        if run <= k:
+            kept.append(int(idx))
+    return kept
 
 
 RAW_ENV = "_rawenv"  # suffix of the ablation that reproduces the normalisation defect (ENV left raw)
@@ -222,6 +261,10 @@ def command(name: str, dataset: str, out_root: str, steps: int | None = None, de
         args, n = RECIPES[recipe]
         keys = {a.split("=", 1)[0] for a in narrower}
         args = [a for a in args if a.split("=", 1)[0] not in keys] + list(narrower)
+    elif name in FEWER:  # the recipe it trains, on the first episodes of each task and noise level
+        recipe, k, _ = FEWER[name]
+        args, n = RECIPES[recipe]
+        args = [*args, f"--dataset.episodes=[{','.join(map(str, first_episodes(dataset, k)))}]"]
     else:
         args, n = RECIPES[name]
     n = n if steps is None else steps
@@ -335,6 +378,15 @@ def train(name: str, dataset: str, out_root: str, steps: int | None = None, devi
               "steps": int(next(a for a in cmd if a.startswith("--steps=")).split("=")[1]), "seed": SEED,
               "commit": _commit(), "dataset": {"root": dataset, "episodes": info.get("total_episodes"),
                                                "frames": info.get("total_frames")}}
+    subset = next((a for a in cmd if a.startswith("--dataset.episodes=")), None)
+    if subset is not None:  # FEWER: the episodes it trained on, of the whole dataset's
+        import pandas as pd
+
+        kept = set(json.loads(subset.split("=", 1)[1]))
+        meta = pd.concat([pd.read_parquet(f, columns=["episode_index", "length"])
+                          for f in sorted((Path(dataset) / "meta" / "episodes").glob("chunk-*/file-*.parquet"))])
+        recipe["dataset"] |= {"episodes": len(kept), "frames": int(meta["length"][meta["episode_index"].isin(kept)].sum()),
+                              "of_episodes": info.get("total_episodes"), "of_frames": info.get("total_frames")}
     if name in CONTINUED or name in RESUMED:  # the run it continues, by the weights it started from
         import hashlib
 
@@ -354,7 +406,7 @@ def train(name: str, dataset: str, out_root: str, steps: int | None = None, devi
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("recipe", nargs="?", choices=[*RECIPES, *SMALLER, *CONTINUED, *RESUMED, "all"], default="all",
+    ap.add_argument("recipe", nargs="?", choices=[*RECIPES, *SMALLER, *FEWER, *CONTINUED, *RESUMED, "all"], default="all",
                     help="a recipe, a `_mid` sibling that continues a committed checkpoint, a resumed CPU run, "
                          "or all recipes")
     ap.add_argument("--dataset", default=DATASET)

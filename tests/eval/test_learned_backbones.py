@@ -44,6 +44,26 @@ def test_a_smaller_recipe_is_its_recipe_with_only_the_named_sizes_replaced():
         assert rest[0] == rest[1]
 
 
+def test_a_fewer_data_recipe_is_its_recipe_on_the_first_episodes_of_each_task_and_noise_level(tmp_path):
+    import pandas as pd
+
+    # record_dataset.py's order: noise level, then task, then init state; T1 has no episode at level 1
+    tasks = [["t0"]] * 3 + [["t1"]] * 2 + [["t2"]] * 4 + [["t0"]] * 1 + [["t2"]] * 2
+    meta = tmp_path / "ds" / "meta" / "episodes" / "chunk-000"
+    meta.mkdir(parents=True)
+    pd.DataFrame({"episode_index": range(len(tasks)), "tasks": tasks, "length": [100] * len(tasks)}).to_parquet(
+        meta / "file-000.parquet")
+    assert train_backbones.first_episodes(str(tmp_path / "ds"), 2) == [0, 1, 3, 4, 5, 6, 9, 10, 11]
+    assert train_backbones.first_episodes(str(tmp_path / "ds"), 1) == [0, 3, 5, 9, 10]
+    for few, (recipe, k, _) in train_backbones.FEWER.items():
+        mine = train_backbones.command(few, str(tmp_path / "ds"), "out")
+        theirs = train_backbones.command(recipe, str(tmp_path / "ds"), "out")
+        assert f"--dataset.episodes=[{','.join(map(str, train_backbones.first_episodes(str(tmp_path / 'ds'), k)))}]" in mine
+        named = {"--output_dir", "--job_name", "--dataset.episodes"}
+        rest = [{a for a in cmd if a.split("=", 1)[0] not in named} for cmd in (mine, theirs)]
+        assert rest[0] == rest[1]
+
+
 def test_weak_siblings_are_earlier_checkpoints_of_a_recipe():
     for weak, (recipe, step) in train_backbones.SIBLINGS.items():
         steps = train_backbones.RECIPES[recipe][1]
@@ -212,7 +232,8 @@ def test_the_committed_checkpoints_are_the_weights_the_published_table_ran():
         assert ran == {sha}, name
         recipe = json.loads((ckpt / "recipe.json").read_text())
         if name in train_backbones.MID_CHOICE:  # trained here: the continued run, or the recipe's CPU draw
-            drawn = (train_backbones.CPU_DRAW.get(name, ("",))[0], *train_backbones.SMALLER_OF.get(name, ()))
+            drawn = (train_backbones.CPU_DRAW.get(name, ("",))[0], *train_backbones.SMALLER_OF.get(name, ()),
+                     *train_backbones.FEWER_OF.get(name, ()))
             assert recipe["recipe"] in (name, *drawn) and "CPU" in recipe["device"]
             continue
         assert recipe["recipe"] == train_backbones.SIBLINGS.get(name, (name,))[0] and "cuda" in recipe["device"]
@@ -245,7 +266,8 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
         resumed = train_backbones.RESUMED_OF.get(name, ())
         prefixes = (([f"{name}@"] if continued else []) + ([f"{drawn[0]}_cpufull@"] if drawn else [])
                     + [f"{run}@" for run in resumed]
-                    + [f"{small}@" for small in train_backbones.SMALLER_OF.get(name, ())])
+                    + [f"{small}@" for small in train_backbones.SMALLER_OF.get(name, ())]
+                    + [f"{few}@" for few in train_backbones.FEWER_OF.get(name, ())])
         rate, sha = {}, {}
         for u in sorted(units.glob("*__baseline__*.json")):
             cand = u.name.split("__")[0]
@@ -256,7 +278,8 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
         steps = ((continued[1] // continued[2] if continued else 0) + (len(drawn[1]) if drawn else 0)
                  + sum((train_backbones.RESUMED[r][2] - train_backbones.RESUMED[r][1]) // train_backbones.RESUMED[r][3] - 1
                        for r in resumed)
-                 + sum(len(train_backbones.SMALLER[s][2]) for s in train_backbones.SMALLER_OF.get(name, ())))
+                 + sum(len(train_backbones.SMALLER[s][2]) for s in train_backbones.SMALLER_OF.get(name, ()))
+                 + sum(len(train_backbones.FEWER[f][2]) for f in train_backbones.FEWER_OF.get(name, ())))
         assert len(rate) == steps and all(len(v) == 50 for v in rate.values()), name
         kept = train_backbones.choose_mid({c: float(np.mean(v)) for c, v in rate.items()})
         if run is None:  # the rule's pick is outside the band: no backbone of that name
