@@ -595,7 +595,9 @@ def learned_mid(args) -> None:
             r = json.loads((c / "recipe.json").read_text()) if (c / "recipe.json").exists() else {}
             how = (f"continues {Path(r['continues']['checkpoint']).name} (GPU)" if "continues" in r
                    else f"the whole run resumed from {Path(r['resumes']['checkpoint']).parent.name}" if "resumes" in r
-                   else f"{r.get('recipe', '?')} run whole")
+                   else f"{r.get('recipe', '?')} run whole" + (
+                       f" on {r['dataset']['episodes']} of {r['dataset']['of_episodes']} episodes"
+                       if "of_episodes" in r.get("dataset", {}) else ""))
             rows.append(f"| {name} | `{n}` | {how} | {int(n.rsplit('@', 1)[1])} of {r.get('steps', '?')} | "
                         f"{a['successes']} / {a['n']} | {100 * a['success']:.0f}% [{100 * a['ci'][0]:.0f}, "
                         f"{100 * a['ci'][1]:.0f}] | {a['mean_jerk']:.1f} | {r.get('device', '?')}, "
@@ -617,7 +619,9 @@ def learned_mid(args) -> None:
                        "final checkpoints of two more widths between them and act_chunk's 128 (96 and 112), and, a sixth round after "
                        "those landed at 6 % and 68 %, the 112-wide run's earlier checkpoints, and, a seventh round after "
                        "those went 14, 0, 56, 66 %, the 112-wide run resumed from its step 4800 saving every 400 steps "
-                       "(train_backbones.py RESUMED). "
+                       "(train_backbones.py RESUMED), and, an eighth round after those went 4, 8, 0, 0, 6 %, every "
+                       "checkpoint of act_chunk's recipe trained on fewer demonstrations (the first 5 or 10 recorded "
+                       "episodes of each task and noise level, 81 and 161 of 431: train_backbones.py FEWER). "
                        f"Each ran uncorrected on init states {first}-{first + args.per_task - 1} of the 10 tasks (n = "
                        f"{10 * args.per_task}); the learned table reports the kept one on init states 0-4. Rule, "
                        "written before any of them ran: keep the candidate whose success here lies closest to 40 %, "
@@ -641,7 +645,8 @@ EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
                   "learned10", "learned10_confirm", "learned11", "learned11_confirm", "learned12",
                   "learned12_confirm"}
-LEARNED = "act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,diffusion_chunk"
+LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,act_chunk_mid2,"
+           "diffusion_chunk")
 
 
 def _efficacy_units(stages: list[str], experts: list[str]) -> list:

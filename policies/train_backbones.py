@@ -186,11 +186,13 @@ MID_SIBLINGS = tuple(dict.fromkeys([*CONTINUED, *CPU_DRAW, *RESUMED_OF, *SMALLER
 CPU_DRAW_DIR = "cpu_full"  # where, under the training root, the whole CPU runs are
 # name -> the kept candidate: (its run's directory under the training root, step), as
 # eval/results/learned_mid chose it (a test recomputes the choice from that file's units). A sibling
-# whose pick lies outside 30-50 % on init states 5-9 is no backbone and is not named here:
-# act_chunk_mid2's pick over its seven rounds is act_chunk_w112@007200, 56 % [42, 69] (the seventh's
-# candidates, act_chunk_w112_fine@5200 .. 6800: 4, 8, 0, 0, 6 %).
+# whose pick lies outside 30-50 % on init states 5-9 is no backbone and is not named here.
+# act_chunk_mid2's pick over its eight rounds is act_chunk_few5@002400, 32 % [21, 46] (the eighth's
+# candidates: few5 at 2400 .. 12000: 32, 16, 6, 66, 66 %; few10: 4, 16, 6, 64, 68 %); over seven
+# rounds it had been act_chunk_w112@007200, 56 % [42, 69], outside the band.
 MID_CHOICE: dict[str, tuple[str, int]] = {"act_single_mid": (f"{CPU_DRAW_DIR}/act_single", 20000),
-                                          "act_chunk_mid": ("act_chunk_mid", 1200)}
+                                          "act_chunk_mid": ("act_chunk_mid", 1200),
+                                          "act_chunk_mid2": (f"{CPU_DRAW_DIR}/act_chunk_few5", 2400)}
 
 
 def mid_candidates(name: str, out_root: str = "outputs/train") -> dict[str, Path]:
