@@ -171,9 +171,9 @@ SMALLER_OF: dict[str, tuple[str, ...]] = {"act_chunk_mid2": ("act_chunk_small", 
 # at once): act_chunk's recipe (same model, seed, steps) on fewer demonstrations, lerobot-train
 # `--dataset.episodes`: per task and DART noise level only its first k recorded episodes (the lowest
 # init states that succeeded; the dataset's normalisation statistics stay the whole dataset's),
-# k = 5 and 10 (81 and 161 of the 431 episodes: T4 and T6 have few). Every demonstration still ends in a release,
-# so the skill is learned; what data lacks is coverage of the starts, which should lower success
-# by the init states a policy cannot reach rather than by a skill it lacks. Every checkpoint of both
+# k = 5 and 10 (81 and 161 of the 431 episodes: T4 and T6 have few). Every demonstration still ends
+# in a release, so the skill is learned; what data lacks is coverage of the starts, which should
+# lower success by the init states a policy cannot reach rather than by a skill it lacks. Every checkpoint of both
 # runs is a candidate, fixed before either trained; the same rule keeps one of all candidates of
 # every round. fewer-data run -> (the recipe it trains, episodes kept per task and noise level,
 # the steps of its run that are candidates)
