@@ -56,7 +56,7 @@ from backbones import BACKBONES  # noqa: E402
 from harness import BACKENDS, Unit, seed_blocks  # noqa: E402
 
 from lerobot_physvla import metrics  # noqa: E402
-from lerobot_physvla.core.config import PRESETS, PhysVLAConfig  # noqa: E402
+from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, PhysVLAConfig  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 MODES = ("baseline", "temporal", "phys", "phys_el")
@@ -571,7 +571,8 @@ def learned_checkpoints(args) -> None:
 def learned_mid(args) -> None:
     """The `_mid` weak siblings (policies/train_backbones.py CONTINUED, CPU_DRAW): every candidate
     checkpoint, uncorrected, on init states 5-9 (which the learned table does not use), and the one
-    the rule written before this ran keeps: success closest to 40 %, ties to the earlier step."""
+    the rule written before this ran keeps: success closest to 40 %, ties to the earlier step; then each
+    kept sibling in the 30-50 % band under the shipped default on the same init states, paired."""
     tb = _train_backbones()
     first, out = args.first_seed, RESULTS / "learned_mid"
     cands: dict[str, tuple[str, Path]] = {}
@@ -633,6 +634,23 @@ def learned_mid(args) -> None:
               ", ".join(f"{n}: `{c}`" + ("" if 0.30 <= agg[(c, "baseline")]["success"] <= 0.50 else
                                           f" ({100 * agg[(c, 'baseline')]['success']:.0f} %: outside the band, no sibling)")
                         for n, c in chosen.items())]
+    # the kept siblings in the band under the shipped default, on the same init states, paired
+    import efficacy as ef
+
+    kept = {n: c for n, c in chosen.items() if 0.30 <= agg[(c, "baseline")]["success"] <= 0.50}
+    shipped = PRESETS[DEFAULT_PRESET]
+    named = next((k for k, c in ef.COMPARED.items() if k != "baseline" and c == shipped), DEFAULT_PRESET)
+    more = [Unit(c, named, shipped.to_dict(), t, first, args.per_task, policy=str(cands[c][1].resolve()))
+            for c in kept.values() for t in range(10)]
+    if more:
+        extra, secs2 = run_units(more, out, args.workers, args.backend)
+        records = records + extra
+        lines += ["", f"## The kept siblings under the shipped default (`{DEFAULT_PRESET}`, `{named}`), same init states",
+                  "", "Paired against the same checkpoint uncorrected on the same (task, init state); this block "
+                  "chose the checkpoint by its uncorrected success, not the default.", "", *ef.PAIRED_HEAD,
+                  *(ef.paired_row(f"{n} (`{c}`) / {named}", ef.paired(records, named, c)) for n, c in kept.items()),
+                  "", f"{len(more)} units; their own compute time: {COMPUTE_S[0] / 60:.1f} min (this invocation: "
+                  f"{secs2 / 60:.1f} min)."]
     write(out, lines, records)
 
 
