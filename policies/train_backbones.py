@@ -229,16 +229,22 @@ def choose_mid(success: dict[str, float], target: float = 0.40) -> str:
     return min(success, key=lambda k: (round(abs(success[k] - target), 9), int(k.rsplit("@", 1)[1]), order[k]))
 
 
-def first_episodes(dataset: str, k: int) -> list[int]:
-    """The dataset's episode indices that FEWER keeps: the first k of each run of consecutive episodes
-    of one task (record_dataset.py writes them per noise level, then per task, by init state)."""
+def _episodes_meta(dataset: str, columns: list[str]):
+    """Columns of the dataset's per-episode metadata (meta/episodes/*/*.parquet), in episode order."""
     import pandas as pd
 
     files = sorted((Path(dataset) / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
     if not files:
         raise SystemExit(f"train_backbones: no episode metadata under {dataset}/meta/episodes; run "
                          "policies/record_dataset.py first")
-    meta = pd.concat([pd.read_parquet(f, columns=["episode_index", "tasks"]) for f in files])
+    # one thread: pyarrow's reader pool otherwise aborts some interpreters at exit ("terminate called")
+    return pd.concat([pd.read_parquet(f, columns=columns, use_threads=False) for f in files])
+
+
+def first_episodes(dataset: str, k: int) -> list[int]:
+    """The dataset's episode indices that FEWER keeps: the first k of each run of consecutive episodes
+    of one task (record_dataset.py writes them per noise level, then per task, by init state)."""
+    meta = _episodes_meta(dataset, ["episode_index", "tasks"])
     kept, prev, run = [], None, 0
     for idx, tasks in zip(meta["episode_index"], meta["tasks"]):
         task = tuple(tasks)
@@ -382,11 +388,8 @@ def train(name: str, dataset: str, out_root: str, steps: int | None = None, devi
                                                "frames": info.get("total_frames")}}
     subset = next((a for a in cmd if a.startswith("--dataset.episodes=")), None)
     if subset is not None:  # FEWER: the episodes it trained on, of the whole dataset's
-        import pandas as pd
-
         kept = set(json.loads(subset.split("=", 1)[1]))
-        meta = pd.concat([pd.read_parquet(f, columns=["episode_index", "length"])
-                          for f in sorted((Path(dataset) / "meta" / "episodes").glob("chunk-*/file-*.parquet"))])
+        meta = _episodes_meta(dataset, ["episode_index", "length"])
         recipe["dataset"] |= {"episodes": len(kept), "frames": int(meta["length"][meta["episode_index"].isin(kept)].sum()),
                               "of_episodes": info.get("total_episodes"), "of_frames": info.get("total_frames")}
     if name in CONTINUED or name in RESUMED:  # the run it continues, by the weights it started from
