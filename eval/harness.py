@@ -249,7 +249,8 @@ def _check_stale(done: list[Unit], out: Path) -> None:
         c = PhysVLAConfig.from_dict(d)
         return c if c.lowpass != "off" else c.replace(lowpass_alpha_max=0.0, lowpass_rough_lo=0.0,
                                                       lowpass_rough_hi=1.0, lowpass_phases="",
-                                                      lowpass_space="action", lowpass_speed_hi=0.0)
+                                                      lowpass_space="action", lowpass_speed_hi=0.0,
+                                                      lowpass_rough="ema", lowpass_lag="trail")
 
     for u in done:
         path = out / "units" / f"{u.key}.json"

@@ -63,7 +63,9 @@ def guard(out, a_raw, status, every, absolute, hold0, low, high, last, has_last,
 
     Rows with status != OK (every row if `every`) get a_raw clipped to [low, high] if it is
     finite, else the hold action: 0 where absolute[k] is False, else last[i, k] (or hold0[k]
-    before this env emitted anything). On commit, out becomes the env's `last`.
+    before this env emitted anything). Corrected rows are clipped to [low, high] too (a step after
+    the blend, such as the low-pass in target space, may leave them; not counted as a clip of the
+    policy's action). On commit, out becomes the env's `last`.
     Returns (B,) int8 GUARD_* codes.
     """
     b, a_dim = out.shape
@@ -88,6 +90,9 @@ def guard(out, a_raw, status, every, absolute, hold0, low, high, last, has_last,
                         out[i, k] = last[i, k] if has_last[i] else hold0[k]
                     else:
                         out[i, k] = 0.0
+        else:
+            for k in range(a_dim):
+                out[i, k] = min(max(out[i, k], low), high)
         if commit:
             for k in range(a_dim):
                 last[i, k] = out[i, k]

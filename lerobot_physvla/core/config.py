@@ -24,6 +24,8 @@ PHASE_REFS: tuple[str, ...] = ("eef", "object")
 ASSIST_STILL: tuple[str, ...] = ("action", "hand")  # what makes a hold still for the release assist
 LOWPASS_RULES: tuple[str, ...] = ("off", "adaptive")
 LOWPASS_SPACES: tuple[str, ...] = ("action", "target")
+LOWPASS_ROUGH: tuple[str, ...] = ("ema", "median")  # the low-pass's roughness estimate (core/lowpass.py)
+LOWPASS_LAGS: tuple[str, ...] = ("trail", "compensate")  # a filtered target's lag behind a steady move
 PHASE_NAMES: tuple[str, ...] = ("approach", "grasp", "transport", "place")
 
 
@@ -196,6 +198,13 @@ class PhysVLAConfig:
         lowpass_rough_lo, lowpass_rough_hi: roughness (action units: the estimated standard
             deviation of the policy's step-to-step noise, per channel) at which the low-pass starts
             acting and at which it reaches alpha_max.
+        lowpass_rough: ema | median: the roughness estimate: an EMA of squared step-to-step changes
+            (ema), or the median of the last 9 absolute second differences (median: a change the
+            policy means, such as a chunk boundary, is one value in 9 and moves it little).
+        lowpass_lag: trail | compensate: a target filtered in target space (or on an absolute
+            layout) trails a constant-speed move, executed at (1 - alpha) of its speed (trail), or
+            leads by alpha / (1 - alpha) of the policy's intended speed, which removes that lag
+            (compensate).
     """
 
     mode: str = "phys_el"
@@ -237,6 +246,8 @@ class PhysVLAConfig:
     lowpass_alpha_max: float = 0.6
     lowpass_rough_lo: float = 0.05
     lowpass_rough_hi: float = 0.2
+    lowpass_rough: str = "ema"
+    lowpass_lag: str = "trail"
 
     def __post_init__(self) -> None:
         self.validate()
@@ -253,6 +264,8 @@ class PhysVLAConfig:
             ("assist_still", self.assist_still, ASSIST_STILL),
             ("lowpass", self.lowpass, LOWPASS_RULES),
             ("lowpass_space", self.lowpass_space, LOWPASS_SPACES),
+            ("lowpass_rough", self.lowpass_rough, LOWPASS_ROUGH),
+            ("lowpass_lag", self.lowpass_lag, LOWPASS_LAGS),
         ):
             if value not in allowed:
                 raise ValueError(f"physvla: unknown {name} {value!r}; choose one of {', '.join(allowed)}")

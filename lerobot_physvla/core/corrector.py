@@ -387,7 +387,8 @@ class Corrector:
         fp[FP_CAPS:FP_VETO] = cfg.caps
         fp[FP_VETO:FP_LP] = cfg.veto_height_m, cfg.veto_reach_m
         fp[FP_LP:N_FP] = (cfg.lowpass_alpha_max, cfg.lowpass_rough_lo, cfg.lowpass_rough_hi, lay.metres_per_unit,
-                          cfg.lowpass_space == "target", cfg.lowpass_speed_hi)
+                          cfg.lowpass_space == "target", cfg.lowpass_speed_hi, cfg.lowpass_rough == "median",
+                          cfg.lowpass_lag == "compensate")
         return fp
 
     def _int_params(self, n: int) -> np.ndarray:
@@ -487,7 +488,8 @@ class Corrector:
             if ip[IP_LOWPASS]:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
                                  fp[FP_LP + 1], fp[FP_LP + 2], self._lp_mem, commit, dev, flat, ip[IP_PHASE + 1],
-                                 self._absolute, fp[FP_LP + 3], fp[FP_LP + 4] != 0.0, fp[FP_LP + 5])
+                                 self._absolute, fp[FP_LP + 3], fp[FP_LP + 4] != 0.0, fp[FP_LP + 5],
+                                 fp[FP_LP + 6] != 0.0, fp[FP_LP + 7] != 0.0)
         lay = self.layout
         g = guard(out, a_raw, status, baseline, self._absolute, self._hold0, lay.low, lay.high, self._last_out,
                   self._has_last, commit)

@@ -45,7 +45,7 @@ TICK_SOURCE_KEY = source_key(TICK_SOURCE_FILES)
  IP_LP_MASK, N_IP) = (0, 5, 11, 12, 15, 17, 18, 19, 20, 21, 22, 23, 27)
 # layout of the float parameters
 (FP_D_GRASP, FP_H_LIFT, FP_CAP, FP_GRIP_OPEN, FP_LOW, FP_HIGH, FP_B, FP_CAPS, FP_VETO, FP_LP, N_FP) = (
-    0, 1, 2, 3, 4, 5, 6, 10, 14, 16, 22)
+    0, 1, 2, 3, 4, 5, 6, 10, 14, 16, 24)
 # columns of the diagnostics buffer (B, N_DIAG + A): phase (-1 where passed through), status
 # (REASONS code), guard (GUARDS code), d_obj_xy, d_tgt_xy, lift (m), |r_EL| (N m), r_energy (W),
 # deviation max|a - a_raw| (action units), sum of Branch B weights, then the A weights
@@ -117,7 +117,8 @@ def _compile(key: int):
             if ip[IP_LOWPASS] != 0:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
                                  fp[FP_LP + 1], fp[FP_LP + 2], lp_mem, commit, dev, flat, ip[IP_PHASE + 1], absolute,
-                                 fp[FP_LP + 3], fp[FP_LP + 4] != 0.0, fp[FP_LP + 5])
+                                 fp[FP_LP + 3], fp[FP_LP + 4] != 0.0, fp[FP_LP + 5], fp[FP_LP + 6] != 0.0,
+                                 fp[FP_LP + 7] != 0.0)
         g = guard(out, a_raw, status, baseline, absolute, hold0, fp[FP_LOW], fp[FP_HIGH], last, has_last, commit)
         return out, record_tick(diag, phase, status, g, geo, r, dev, w, commit)
 

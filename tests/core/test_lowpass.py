@@ -4,7 +4,7 @@ import numpy as np
 
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
-from lerobot_physvla.core.lowpass import LP_ACTIVE, N_LP_MEM, adaptive_lowpass
+from lerobot_physvla.core.lowpass import LP_ACTIVE, LP_NDIFF, LP_WIN, N_LP_MEM, adaptive_lowpass
 from lerobot_physvla.core.state import OK
 
 from conftest import make_state
@@ -55,23 +55,24 @@ def test_memory_moves_only_on_commit_and_a_pass_through_breaks_the_history():
     out = np.full((1, 7), 0.5)
     pos, mask = np.array([0, 1, 2]), np.ones(4, np.int64)
     args = (np.zeros(1, np.int8), np.array([OK], np.int8), pos, mask, 0.8, 0.05, 0.2)
-    where = (np.zeros((1, 8)), 0, np.zeros(7, np.bool_), 0.05, False, 0.0)  # rows, eef offset, absolute, m/unit, space, speed
+    # rows, eef offset, absolute, m/unit, target space, speed, robust roughness, lag compensation
+    where = (np.zeros((1, 8)), 0, np.zeros(7, np.bool_), 0.05, False, 0.0, True, False)
     adaptive_lowpass(out.copy(), out, *args, mem, False, np.zeros(1), *where)
     assert not mem.any()
     adaptive_lowpass(out.copy(), out, *args, mem, True, np.zeros(1), *where)
     assert mem[0, LP_ACTIVE] == 1.0
     bad = (args[0], np.array([1], np.int8), *args[2:])
     adaptive_lowpass(out.copy(), out, *bad, mem, True, np.zeros(1), *where)
-    assert mem[0, LP_ACTIVE] == 0.0
+    assert mem[0, LP_ACTIVE] == 0.0 and mem[0, LP_NDIFF] == 0.0
 
 
-def _closed_loop(space: str | None, steps: int = 300, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def _closed_loop(space: str | None, steps: int = 300, seed: int = 0, **cfg) -> tuple[np.ndarray, np.ndarray]:
     """A goal-seeking policy in a loop: a = 0.6 (goal - x) / 0.05 + N(0, 0.3) on x, y (the scripted
     expert's gain and the jitter expert's noise), executed by a perfect delta controller
     (x += a 0.05 m). Returns the positions (steps, 2) and the executed actions (steps, 2)."""
     rng = np.random.default_rng(seed)
     c = None if space is None else Corrector(PhysVLAConfig(
-        mode="phys", phase_caps=CAPS_OFF, lowpass="adaptive", lowpass_space=space, lowpass_alpha_max=0.6))
+        mode="phys", phase_caps=CAPS_OFF, lowpass="adaptive", lowpass_space=space, lowpass_alpha_max=0.6, **cfg))
     x, xs, acts = np.array([0.10, -0.08]), [], []
     for _ in range(steps):
         raw = np.zeros(7)
@@ -133,3 +134,54 @@ def test_speed_fading_keeps_a_fast_move_at_the_policy_s_speed():
     assert x < 0.7 * commanded  # trails
     x, commanded = travelled(lowpass_speed_hi=1.0)
     assert x > 0.85 * commanded  # keeps pace
+    x, commanded = travelled(lowpass_lag="compensate")  # leads by alpha / (1 - alpha) of the intended speed
+    assert 0.9 * commanded < x < 1.1 * commanded
+
+
+def test_lag_compensation_keeps_most_of_the_smoothing_in_a_closed_loop():
+    # the lead follows a slow EMA of the policy's increments: the executed position's jerk (mean
+    # |third difference|) stays well below the unfiltered loop's
+    def jerk(x: np.ndarray) -> float:
+        return float(np.abs(np.diff(x[50:], n=3, axis=0)).mean())
+
+    for seed in range(3):
+        raw = jerk(_closed_loop(None, seed=seed)[0])
+        trail = jerk(_closed_loop("target", seed=seed)[0])
+        lead = jerk(_closed_loop("target", seed=seed, lowpass_lag="compensate")[0])
+        assert trail < lead < 0.5 * raw
+
+
+def _chunked(steps: int = 120, jump: float = 0.5) -> np.ndarray:
+    """A chunked policy's stream: constant increments within each chunk of 10, a jump of `jump`
+    action units between chunks (x), y still, gripper closed."""
+    raw = np.zeros((steps, 7))
+    raw[:, 0] = np.where((np.arange(steps) // 10) % 2 == 0, 0.2, 0.2 + jump)
+    raw[:, 6] = -1.0
+    return raw
+
+
+def test_the_median_roughness_leaves_a_chunked_policy_alone_and_still_smooths_jitter():
+    raw = _chunked()
+    # the EMA of squared changes reads each chunk boundary as noise (0.22 x the jump, above lo = 0.05)
+    assert not np.array_equal(_run(raw, lowpass_space="target"), raw)
+    # two large second differences in nine: the median stays 0
+    np.testing.assert_array_equal(_run(raw, lowpass_space="target", lowpass_rough="median"), raw)
+    rng = np.random.default_rng(6)
+    jitter = np.zeros((120, 7))
+    jitter[:, :2] = np.clip(rng.normal(0.0, 0.3, (120, 2)), -1.0, 1.0)
+    out = _run(jitter, lowpass_rough="median", lowpass_alpha_max=0.8)
+    assert out[30:, :2].std() < 0.5 * jitter[30:, :2].std()
+
+
+def test_the_median_roughness_estimates_white_noise_std():
+    from lerobot_physvla.core.lowpass import robust_roughness
+
+    rng = np.random.default_rng(7)
+    est = []
+    for _ in range(400):
+        d2 = np.diff(rng.normal(0.0, 0.3, 12), n=2)  # 10 second differences of white noise of std 0.3
+        row = np.zeros(N_LP_MEM)
+        row[LP_NDIFF] = 10.0  # nine already in the window, one more this step
+        row[LP_WIN:LP_WIN + 9] = np.abs(d2[:9])
+        est.append(robust_roughness(row, 0, d2[9], True))
+    assert abs(np.median(est) - 0.3) < 0.05

@@ -21,6 +21,8 @@ CONFIGS = [
     PRESETS["default"].replace(place_rule="redirect", redirect_tol_m=0.015),
     PRESETS["default"].replace(mode="phys_el", phase_caps=(0.2, 0.5, 1.0, 1.0), lowpass="adaptive",
                                lowpass_phases="grasp,place"),
+    PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target", lowpass_rough="median",
+                               lowpass_lag="compensate"),
 ]
 
 
