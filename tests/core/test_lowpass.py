@@ -185,3 +185,20 @@ def test_the_median_roughness_estimates_white_noise_std():
         row[LP_WIN:LP_WIN + 9] = np.abs(d2[:9])
         est.append(robust_roughness(row, 0, d2[9], True))
     assert abs(np.median(est) - 0.3) < 0.05
+
+
+def test_a_target_space_output_stays_inside_the_bounds_when_the_hand_jumps():
+    # the filtered target minus the measured hand: a hand reported 4 action units away every other
+    # step (a jumping state source) took the emitted action to |2.07| before the safety net clipped
+    # corrected rows too
+    c = Corrector(PhysVLAConfig(mode="phys", phase_caps=CAPS_OFF, lowpass="adaptive", lowpass_space="target",
+                                lowpass_alpha_max=0.6))
+    rng = np.random.default_rng(0)
+    outs = []
+    for t in range(200):
+        raw = np.zeros(7)
+        raw[:2] = np.clip(rng.normal(0.0, 0.5, 2), -1.0, 1.0)
+        outs.append(c(raw[None], make_state(eef=(0.2 * (t % 2 == 0), 0.0, 1.0), obj=(5.0, 0.0, 0.9)))[0])
+    outs = np.asarray(outs)
+    assert np.abs(outs).max() <= 1.0
+    assert np.abs(outs).max() == 1.0  # the filter did push past the bounds: the clip was needed
