@@ -658,34 +658,35 @@ EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3
                    "lift,lowpass,design3,confirm4,design5,confirm5,design6,confirm6,design7,confirm7,learned,learned_confirm,"
                    "learned_phys,learned_phys_confirm,design9,learned9,learned9_confirm,confirm9,design10,learned10,"
                    "learned10_confirm,confirm10,learned11,learned11_confirm,design12,learned12,confirm12,"
-                   "learned12_confirm,design13,learned13,confirm13,learned13_confirm")
+                   "learned12_confirm,design13,learned13,confirm13,learned13_confirm,design14,learned14,confirm14,"
+                   "learned14_confirm")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
                   "learned10", "learned10_confirm", "learned11", "learned11_confirm", "learned12",
-                  "learned12_confirm", "learned13", "learned13_confirm"}
+                  "learned12_confirm", "learned13", "learned13_confirm", "learned14", "learned14_confirm"}
 LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,act_chunk_mid2,"
            "diffusion_chunk")
 
 
-def _confirm13_choice() -> str | None:
-    """The variant of candidate 13 that DESIGN13's rule chooses from the design13 / learned13 units on
-    disk, or None (none meets the rule, or a cell is missing)."""
+def _confirm13_choice(n: int = 13) -> str | None:
+    """What DESIGN13's rule chooses from the design units on disk of candidate n (13: its two variants;
+    14: its one), or None (none meets the rule, or a cell is missing)."""
     import efficacy as ef
 
-    records, _, _ = _present(_efficacy_units(["design13"], EXPERTS.split(",")), RESULTS / "efficacy")
+    records, _, _ = _present(_efficacy_units([f"design{n}"], EXPERTS.split(",")), RESULTS / "efficacy")
     names = LEARNED.split(",")
-    learned, _, _ = _present(_learned_units(["learned13"], names, {n: Path("policies/checkpoints") / n for n in names}),
+    learned, _, _ = _present(_learned_units([f"learned{n}"], names, {b: Path("policies/checkpoints") / b for b in names}),
                              RESULTS / "learned")
-    return ef.candidate13_choice(records, learned)
+    return ef.candidate13_choice(records, learned, ef.CANDIDATE_13_VARIANTS if n == 13 else (ef.CANDIDATE_14,))
 
 
-def _confirm13_configs() -> dict:
-    """Baseline, candidate 12 and the variant of candidate 13 the design seeds chose (none before they
-    chose one: then the confirmation stages hold the references only, and `efficacy` refuses to run them)."""
+def _confirm13_configs(n: int = 13) -> dict:
+    """Baseline, candidate 12 and what the design seeds chose of candidate n (none before they chose:
+    then the confirmation stages hold the references only, and `efficacy` refuses to run them)."""
     import efficacy as ef
 
-    chosen = _confirm13_choice()
+    chosen = _confirm13_choice(n)
     return {name: ef.COMPARED[name] for name in ("baseline", ef.CANDIDATE_12, *([chosen] if chosen else []))}
 
 
@@ -723,6 +724,7 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
                                   ("design10", ef.DESIGN_SEEDS, ef.DESIGN10),
                                   ("design12", ef.DESIGN_SEEDS, ef.DESIGN12),
                                   ("design13", ef.DESIGN_SEEDS, ef.DESIGN13),
+                                  ("design14", ef.DESIGN_SEEDS, ef.DESIGN14),
                                   ("confirm7", ef.CONFIRM7_SEEDS, ef.CONFIRM7)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
@@ -738,13 +740,19 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
         units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM13_BACKBONES[b])
                   for name, cfg in _confirm13_configs().items()
                   for b in ef.CONFIRM13_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
+    if "confirm14" in stages:  # candidate 14 (if chosen), init states 35-39, fresh failure draws seed + 4000
+        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM14_BACKBONES[b])
+                  for name, cfg in _confirm13_configs(14).items()
+                  for b in ef.CONFIRM14_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
     lift_stages = {"lift": ((ef.LIFT_DESIGN, ef.LIFT_CONFIRM), {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}),
                    "design7": ((ef.LIFT_DESIGN,), ef.DESIGN7), "confirm7": ((ef.LIFT_CONFIRM,), ef.CONFIRM7),
                    "design9": ((ef.LIFT_DESIGN,), ef.DESIGN9), "design10": ((ef.LIFT_DESIGN,), ef.DESIGN10),
                    "confirm10": ((ef.LIFT_CONFIRM,), ef.DESIGN10), "design12": ((ef.LIFT_DESIGN,), ef.DESIGN12),
-                   "confirm12": ((ef.LIFT_CONFIRM,), ef.DESIGN12), "design13": ((ef.LIFT_DESIGN,), ef.DESIGN13)}
-    if "confirm13" in stages:
-        lift_stages["confirm13"] = ((ef.LIFT_CONFIRM,), _confirm13_configs())
+                   "confirm12": ((ef.LIFT_CONFIRM,), ef.DESIGN12), "design13": ((ef.LIFT_DESIGN,), ef.DESIGN13),
+                   "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14)}
+    for n in (13, 14):
+        if f"confirm{n}" in stages:
+            lift_stages[f"confirm{n}"] = ((ef.LIFT_CONFIRM,), _confirm13_configs(n))
     for stage, (blocks, lift_cfgs) in lift_stages.items():
         if stage not in stages:
             continue
@@ -808,6 +816,10 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
         blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN13))
     if "learned13_confirm" in stages:  # the chosen variant on init states 10-14
         blocks.append((ef.CONFIRM11_SEEDS, names, _confirm13_configs()))
+    if "learned14" in stages:  # candidate 14 (and candidate 12, its reference), every learned ACT, 0-4
+        blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN14))
+    if "learned14_confirm" in stages:  # candidate 14, if the design seeds chose it, on init states 10-14
+        blocks.append((ef.CONFIRM11_SEEDS, names, _confirm13_configs(14)))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
@@ -837,9 +849,10 @@ def efficacy(args) -> None:
     unknown = [b for b in experts if b not in ef.BACKBONES]
     if unknown:
         raise SystemExit(f"experiments: unknown expert backbone(s) {unknown}; choose from {', '.join(ef.BACKBONES)}")
-    if {"confirm13", "learned13_confirm"} & set(stages) and _confirm13_choice() is None:
-        raise SystemExit("experiments: no variant of candidate 13 met its rule on the design seeds (or a design13 / "
-                         "learned13 cell is missing): its confirmation is not run (eval/efficacy.py DESIGN13)")
+    for n in (13, 14):
+        if {f"confirm{n}", f"learned{n}_confirm"} & set(stages) and _confirm13_choice(n) is None:
+            raise SystemExit(f"experiments: candidate {n} did not meet its rule on the design seeds (or a design{n} / "
+                             f"learned{n} cell is missing): its confirmation is not run (eval/efficacy.py DESIGN{n})")
     _, secs = run_units(_efficacy_units(stages, experts), out, args.workers, args.backend)
     learned_secs = 0.0
     names = args.learned.split(",")
