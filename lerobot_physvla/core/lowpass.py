@@ -83,13 +83,12 @@ SQRT6 = math.sqrt(6.0)  # std of a white noise's second difference, per unit std
 
 
 @njit(cache=True, error_model="numpy")
-def robust_roughness(mem_row, k, d2, have):
+def robust_roughness(mem_row, k, d2, have, buf):
     """The noise std (action units) of channel k from the median of its last ROBUST_WINDOW absolute
     second differences in mem_row's window (the oldest replaced by |d2| when have: this step's value),
-    without writing the memory."""
+    without writing the memory; buf: scratch of ROBUST_WINDOW floats."""
     n_seen = int(mem_row[LP_NDIFF]) - 1  # second differences already in the window
     n = min(n_seen, ROBUST_WINDOW)
-    buf = np.empty(ROBUST_WINDOW)
     m = 0
     for j in range(n):
         if have and n_seen >= ROBUST_WINDOW and j == n_seen % ROBUST_WINDOW:
@@ -114,6 +113,7 @@ def adaptive_lowpass(out, a_raw, phase, status, pos, mask, alpha_max, lo, hi, me
     as the policy's intended speed (module doc) reaches speed_hi action units per step. robust:
     the roughness from the median of second differences (lowpass_rough=median); compensate: the
     filtered target leads by alpha / (1 - alpha) of the intended speed (lowpass_lag=compensate)."""
+    lead_v, buf = np.zeros(3), np.empty(ROBUST_WINDOW)  # scratch, once per call
     for i in range(out.shape[0]):
         if status[i] != OK:
             if commit:
@@ -124,7 +124,6 @@ def adaptive_lowpass(out, a_raw, phase, status, pos, mask, alpha_max, lo, hi, me
         acts = mask[phase[i]] != 0
         # the policy's intended speed: an EMA of its raw increments, where zero-mean noise averages out
         slow = 1.0
-        lead_v = np.zeros(3)
         if speed_hi > 0.0 or compensate:
             speed2 = 0.0
             for k in range(3):
@@ -153,7 +152,7 @@ def adaptive_lowpass(out, a_raw, phase, status, pos, mask, alpha_max, lo, hi, me
             shift = flat[i, eef_off + k] / metres_per_unit if target and not absolute[c] else 0.0
             y = out[i, c] + shift
             if acts and active:
-                sigma = robust_roughness(mem[i], k, d2, have2) if robust else math.sqrt(r / 2.0)
+                sigma = robust_roughness(mem[i], k, d2, have2, buf) if robust else math.sqrt(r / 2.0)
                 s = (sigma - lo) / (hi - lo)
                 alpha = alpha_max * min(max(s, 0.0), 1.0) * slow
                 y = alpha * mem[i, LP_Y + k] + (1.0 - alpha) * y

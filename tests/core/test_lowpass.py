@@ -183,7 +183,7 @@ def test_the_median_roughness_estimates_white_noise_std():
         row = np.zeros(N_LP_MEM)
         row[LP_NDIFF] = 10.0  # nine already in the window, one more this step
         row[LP_WIN:LP_WIN + 9] = np.abs(d2[:9])
-        est.append(robust_roughness(row, 0, d2[9], True))
+        est.append(robust_roughness(row, 0, d2[9], True, np.empty(9)))
     assert abs(np.median(est) - 0.3) < 0.05
 
 
