@@ -60,7 +60,9 @@ DEFAULT_V2 = "default v2"
 # candidate 6 (the shipped default from 2026-11-24 until candidate 10), frozen (the release assist and the way it
 # judges a hold still, candidates 10 and 12, off): the earlier candidates
 # are written as changes of it, and its units on disk keep matching it whatever the preset becomes
-DEFAULT_6 = PRESETS["default"].replace(release_assist_m=0.0, assist_still="action")
+DEFAULT_6 = PRESETS["default"].replace(release_assist_m=0.0, assist_still="action", lowpass="off",
+                                      lowpass_phases="approach,grasp,transport,place", lowpass_space="action",
+                                      lowpass_alpha_max=0.6, lowpass_rough="ema")
 V2 = DEFAULT_6.replace(place_rule="redirect", redirect_tol_m=0.0, veto_reopen=True, release_carry=False)
 # candidate 4, the third shipped default (v2 with the release veto in place of the redirection). Its
 # units first ran as "default, release_veto=0.02", were renamed "default" when it shipped and
@@ -381,6 +383,11 @@ CONFIRM13_BACKBONES = {"expert_clean": BACKBONES["expert_clean"],
 # and (c) hold there but not (a), it is offered as the opt-in preset `smooth`; else neither. The jitter
 # expert's design-block episodes are the ones the phases were chosen on: the design verdict checks the
 # other backbones and Lift / Fetch, the confirmation is the test.
+# Outcome: it met (a)-(c) on the design seeds (jitter jerk x0.46, 4 won / 3 lost; every other backbone
+# within 1 pair net; Lift / Fetch sigma 0.40 20 vs 18, 19 vs 14) and failed (b) on the confirmation:
+# the jitter expert 2 won / 7 lost against candidate 12 (jerk x0.45); every other expert's pairs the
+# same, the learned ACTs within 1 pair net, Lift / Fetch the same successes (ratio 4.67 / 5.51). Not
+# shipped, no preset (docs/method.md "Candidates 13 and 14").
 DESIGN14 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_12, CANDIDATE_14)}
 FRESH_DRAWS_14 = 4000
 CONFIRM14_BACKBONES = {"expert_clean": BACKBONES["expert_clean"],
@@ -677,6 +684,35 @@ def candidate11_verdict(learned, seeds) -> tuple[list[str], bool | None]:
     return [*rows, row], ok and above
 
 
+def _lowpass_sections(records, learned, cand: str, offset: int, confirm_backbones: dict, section: str, heading: str,
+                      rule: str) -> list[str]:
+    """The report's sections of a low-pass candidate (13's variants, 14) on the design seeds and on its
+    confirmation blocks (the failure experts on 35-39 with fresh draws seed + offset, the learned ACTs
+    on 10-14, Lift / Fetch 100-119): its rows and DESIGN13's verdicts (a)-(c)."""
+    lines = []
+    said = {None: "incomplete (a cell is missing)", True: "met", False: "not met"}
+    for title, seeds, experts, first in (
+            ("design seeds (LIBERO init states 0-4, Lift / Fetch 7-26)", DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN),
+            (f"confirmation (the failure experts on init states 35-39 with fresh draws, seed + {offset}; the "
+             "learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)", None,
+             tuple(confirm_backbones), LIFT_CONFIRM)):
+        if seeds is None:
+            rows, jerk_ok, no_harm, net = candidate13_verdict(
+                [r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
+                [r for r in learned if r["seed"] in CONFIRM11_SEEDS], range(0, 50), experts, first, cand,
+                f"expert_jitter+{offset}")
+        else:
+            rows, jerk_ok, no_harm, net = candidate13_verdict(records, learned, seeds, experts, first, cand,
+                                                              "expert_jitter")
+        if rows:
+            lines += ["", f"## {section}. {heading}, {title}: (a) the jitter expert's jerk <= {JERK_GOAL} x baseline's "
+                      f"{said[jerk_ok]}; (b) no backbone losing more than 1 pair net against candidate 12 "
+                      f"(`{CANDIDATE_12}`) and (c) Lift / Fetch within 1 of 20 of it: {said[no_harm]}; pairs won net "
+                      f"against candidate 12 over every backbone: {net:+d} (rule: eval/efficacy.py {rule})\n",
+                      *PAIRED_HEAD, *rows]
+    return lines
+
+
 def report(out, records, secs, n_units, header, write, learned=()) -> None:
     """eval/results/efficacy/README.md: the screen, both blocks paired against baseline, Lift/Fetch."""
     lines = header("Efficacy: per-correction ablation, the shipped default vs baseline, temporal and the paper's "
@@ -800,49 +836,14 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                       f"DESIGN12: pooled over the learned ACTs an interval above 0 against candidate 10, `{CANDIDATE_10}` "
                       "here; no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it)\n",
                       *PAIRED_HEAD, *rows]
-    for title, seeds, experts, first in (
-            ("design seeds (LIBERO init states 0-4, Lift / Fetch 7-26)", DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN),
-            (f"confirmation (the failure experts on init states 35-39 with fresh draws, seed + {FRESH_DRAWS_13}; the "
-             "learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)", None,
-             tuple(CONFIRM13_BACKBONES), LIFT_CONFIRM)):
-        for cand in CANDIDATE_13_VARIANTS:
-            if seeds is None:
-                rows, jerk_ok, no_harm, net = candidate13_verdict(
-                    [r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
-                    [r for r in learned if r["seed"] in CONFIRM11_SEEDS], range(0, 50), experts, first, cand,
-                    f"expert_jitter+{FRESH_DRAWS_13}")
-            else:
-                rows, jerk_ok, no_harm, net = candidate13_verdict(records, learned, seeds, experts, first, cand,
-                                                                  "expert_jitter")
-            if rows:
-                said = {None: "incomplete (a cell is missing)", True: "met", False: "not met"}
-                lines += ["", f"## 3l. Candidate 13 (`{cand}`), {title}: (a) the jitter expert's jerk <= {JERK_GOAL} x "
-                          f"baseline's {said[jerk_ok]}; (b) no backbone losing more than 1 pair net against candidate 12 "
-                          f"(`{CANDIDATE_12}`) and (c) Lift / Fetch within 1 of 20 of it: {said[no_harm]}; pairs won net "
-                          f"against candidate 12 over every backbone: {net:+d} (rule: eval/efficacy.py DESIGN13)\n",
-                          *PAIRED_HEAD, *rows]
+    for cand in CANDIDATE_13_VARIANTS:
+        lines += _lowpass_sections(records, learned, cand, FRESH_DRAWS_13, CONFIRM13_BACKBONES, "3l", f"Candidate 13 (`{cand}`)",
+                                   "DESIGN13")
     if any(r["config"] in CANDIDATE_13_VARIANTS for r in records):
         lines += ["", f"Candidate 13's variant chosen on the design seeds: {candidate13_choice(records, learned) or 'none'}."]
-    for title, seeds, experts, first in (
-            ("design seeds (LIBERO init states 0-4, Lift / Fetch 7-26)", DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN),
-            (f"confirmation (the failure experts on init states 35-39 with fresh draws, seed + {FRESH_DRAWS_14}; the "
-             "learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)", None,
-             tuple(CONFIRM14_BACKBONES), LIFT_CONFIRM)):
-        if seeds is None:
-            rows, jerk_ok, no_harm, net = candidate13_verdict(
-                [r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
-                [r for r in learned if r["seed"] in CONFIRM11_SEEDS], range(0, 50), experts, first, CANDIDATE_14,
-                f"expert_jitter+{FRESH_DRAWS_14}")
-        else:
-            rows, jerk_ok, no_harm, net = candidate13_verdict(records, learned, seeds, experts, first, CANDIDATE_14,
-                                                              "expert_jitter")
-        if rows:
-            said = {None: "incomplete (a cell is missing)", True: "met", False: "not met"}
-            lines += ["", f"## 3m. Candidate 14 (`{CANDIDATE_14}`: candidate 13a in approach, grasp and place only, "
-                      f"alpha_max 0.8), {title}: (a) the jitter expert's jerk <= {JERK_GOAL} x baseline's "
-                      f"{said[jerk_ok]}; (b) no backbone losing more than 1 pair net against candidate 12 and (c) Lift "
-                      f"/ Fetch within 1 of 20 of it: {said[no_harm]}; pairs won net against candidate 12 over every "
-                      f"backbone: {net:+d} (rule: eval/efficacy.py DESIGN14)\n", *PAIRED_HEAD, *rows]
+    lines += _lowpass_sections(records, learned, CANDIDATE_14, FRESH_DRAWS_14, CONFIRM14_BACKBONES, "3m",
+                               f"Candidate 14 (`{CANDIDATE_14}`: candidate 13a in approach, grasp and place only, "
+                               "alpha_max 0.8)", "DESIGN14")
     lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
     if lift:
         lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",

@@ -94,6 +94,35 @@ def paired_table(name: str, title: str) -> list[str]:
     return lines + [""]
 
 
+def _confirmation_table(recs, ef, cand: str, ref: str, backbones: dict, offset: int, section: str, who: str,
+                        ref_label: str) -> list[str]:
+    """A candidate against its reference and baseline on its confirmation blocks (the experts on init
+    states 35-39 with fresh failure draws seed + offset, the learned ACTs on 10-14), paired; [] until
+    every expert cell is complete."""
+    fresh = [r for r in recs if r["backbone"] in backbones and r["seed"] in ef.CONFIRM9_SEEDS
+             and r["config"] in ("baseline", ref, cand)]
+    if sum(r["config"] == cand for r in fresh) < 50 * len(backbones):
+        return []
+    learned = [r for f in sorted((RESULTS / "learned" / "units").glob("*__s10-14.json"))  # the efficacy stage's units
+               for r in json.loads(f.read_text())["records"] if r["config"] in ("baseline", ref, cand)]
+    lines = [f"**LIBERO-Spatial, {who.format(cand=cand)} confirmation blocks; no decision about it looked at these "
+             f"episodes: the experts on init states 35-39 with fresh failure draws (seed + {offset}), the learned ACTs on "
+             "init states 10-14 (where their demonstrations were recorded; 40-49 stay untouched) (10 tasks, n = 50 pairs "
+             f"per cell)** ([eval/results/efficacy](eval/results/efficacy/README.md) section {section}): success; paired "
+             "difference against baseline [95 % CI]; jerk relative to baseline's\n",
+             f"| backbone | baseline | {ref} ({ref_label}) | {cand} |", "|---|---|---|---|"]
+    blocks = [(b, fresh) for b in backbones]
+    blocks += [(b, learned) for b in dict.fromkeys(r["backbone"] for r in learned if r["config"] == cand)]
+    for b, rs in blocks:
+        ps = [ef.paired(rs, c, b) for c in (ref, cand)]
+        if min(p["n"] for p in ps) < 50:
+            continue
+        cells = [f"{p['success']:.0%} ({p['diff'] * 100:+.0f} pp [{p['ci'][0] * 100:+.0f}, "
+                 f"{p['ci'][1] * 100:+.0f}]; jerk x{p['jerk_ratio']:.2f})" for p in ps]
+        lines.append(f"| {b} | {ps[0]['base_success']:.0%} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def efficacy_table() -> list[str]:
     """The shipped default against baseline on the confirmation blocks (paired), Lift / Fetch / plate."""
     import sys
@@ -105,29 +134,8 @@ def efficacy_table() -> list[str]:
     if not recs:
         return []
     lines = []
-    fresh = [r for r in recs if r["backbone"] in ef.CONFIRM12_BACKBONES and r["seed"] in ef.CONFIRM9_SEEDS
-             and r["config"] in ("baseline", ef.CANDIDATE_10, ef.CANDIDATE_12)]
-    learned = [r for f in sorted((RESULTS / "learned" / "units").glob("*__s10-14.json"))  # the efficacy stage's units
-               for r in json.loads(f.read_text())["records"]
-               if r["config"] in ("baseline", ef.CANDIDATE_10, ef.CANDIDATE_12)]
-    if sum(r["config"] == ef.CANDIDATE_12 for r in fresh) >= 50 * len(ef.CONFIRM12_BACKBONES):
-        lines += ["**LIBERO-Spatial, the shipped default's (candidate 12, `default + release assist, hand still`) "
-                  f"confirmation blocks; no decision about it looked at these episodes: the experts on init states "
-                  f"35-39 with fresh failure draws (seed + {ef.FRESH_DRAWS_12}), the learned ACTs on init states 10-14 "
-                  "(where their demonstrations were recorded; 40-49 stay untouched) (10 tasks, n = 50 pairs per "
-                  "cell)** ([eval/results/efficacy](eval/results/efficacy/README.md) section 3k): success; paired "
-                  "difference against baseline [95 % CI]; jerk relative to baseline's\n",
-                  f"| backbone | baseline | {ef.CANDIDATE_10} (candidate 10) | {ef.CANDIDATE_12} |", "|---|---|---|---|"]
-        blocks = [(b, fresh) for b in ef.CONFIRM12_BACKBONES]
-        blocks += [(b, learned) for b in dict.fromkeys(r["backbone"] for r in learned if r["config"] == ef.CANDIDATE_12)]
-        for b, rs in blocks:
-            ps = [ef.paired(rs, c, b) for c in (ef.CANDIDATE_10, ef.CANDIDATE_12)]
-            if min(p["n"] for p in ps) < 50:
-                continue
-            cells = [f"{p['success']:.0%} ({p['diff'] * 100:+.0f} pp [{p['ci'][0] * 100:+.0f}, "
-                     f"{p['ci'][1] * 100:+.0f}]; jerk x{p['jerk_ratio']:.2f})" for p in ps]
-            lines.append(f"| {b} | {ps[0]['base_success']:.0%} | " + " | ".join(cells) + " |")
-        lines.append("")
+    lines += _confirmation_table(recs, ef, ef.CANDIDATE_12, ef.CANDIDATE_10, ef.CONFIRM12_BACKBONES, ef.FRESH_DRAWS_12,
+                                 "3k", "the shipped default's (candidate 12, `{cand}`)", "candidate 10")
     for seeds, what in ((ef.CONFIRM7_SEEDS, "init states 35-39, a second block no decision looked at for "
                                             "candidate 6 (`default`, shipped until 2026-11-25; and candidate 7's "
                                             "confirmation block)"),
