@@ -55,7 +55,8 @@ def test_presets_follow_the_paper_and_the_default_is_built_from_the_options():
                                  {"lowpass_rough_lo": 0.3, "lowpass_rough_hi": 0.2}, {"place_rule": "throw"},
                                  {"phase_ref": "elbow"}, {"veto_height_m": -0.1},
                                  {"veto_reach_m": -0.1}, {"chunk_phase_caps": (0, 0.05)},
-                                 {"chunk_phase_caps": (0, -0.05, 0, 1)}])
+                                 {"chunk_phase_caps": (0, -0.05, 0, 1)}, {"lowpass_rough": "mean"},
+                                 {"lowpass_lag": "lead"}])
 def test_bad_options_are_rejected(bad):
     with pytest.raises(ValueError):
         PhysVLAConfig(**bad)
