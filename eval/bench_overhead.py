@@ -287,6 +287,30 @@ def timed(cls, name, what):
     def call(self, *args, **kwargs):
         t0 = clock(); r = orig(self, *args, **kwargs); events.append((what, clock() - t0)); return r
     setattr(cls, name, call)
+if "--bench-floor" in flags:  # the floor: the same three places, each doing the least it could
+    flags = [f for f in flags if f != "--bench-floor"]
+    import numpy as np, torch
+    from numba import njit
+    from lerobot.processor import TransitionKey
+    @njit(cache=False)
+    def _trivial(a):  # one compiled call that reads one float of one array
+        return a.ravel()[0]
+    real_read = RobosuiteStateSource.read_packed
+    def floor_read(self):  # the packed row of the build-time read, handed back through one compiled call
+        row = getattr(self, "_floor_row", None)
+        if row is None:
+            row = self._floor_row = real_read(self)
+        _trivial(row)
+        return row
+    RobosuiteStateSource.read_packed = floor_read
+    def floor_step(self, transition):  # the action to numpy, one compiled call, back to a float32 tensor
+        a = transition[TransitionKey.ACTION].numpy()
+        _trivial(a)
+        new = dict(transition)
+        new[TransitionKey.ACTION] = torch.from_numpy(a.astype(np.float32))
+        return new
+    PhysVLACorrectorStep.__call__ = floor_step
+    _trivial(np.zeros((1, 7), np.float32))  # compiled for the action here, for the row at the build-time read
 read = RobosuiteStateSource.read_packed
 def read_in_ticks(self):  # the read the source makes when it is built is no control tick's
     if not getattr(self, "_built", False):
@@ -310,6 +334,9 @@ register_third_party_plugins()
 lerobot_eval.eval_main()
 print("EVENTS" + json.dumps(events))
 """
+
+
+FLOOR = "floor (no correction)"
 
 
 def in_eval(batch: int, episodes: int, policy: Path, out: Path, flags: tuple = ()) -> dict:
@@ -514,7 +541,7 @@ def main() -> None:
     subprocess.run([sys.executable, str(ROOT / "policies/make_scripted_policy.py"), str(policy)], check=True,
                    capture_output=True)
     runs = (("phys_el", 1, ("--physvla.mode=phys_el",)), ("phys_el", 8, ("--physvla.mode=phys_el",)),
-            ("shipped default", 1, ()))
+            ("shipped default", 1, ()), (FLOOR, 1, ("--bench-floor",)), (FLOOR, 8, ("--bench-floor",)))
     tries: dict[str, list[dict]] = {f"{name} B={b}": [] for name, b, _ in runs}
     for rep in range(args.eval_repeats):  # interleaved: this VM's speed drifts over minutes
         for k, (name, b, flags) in enumerate(runs):
@@ -536,7 +563,11 @@ def main() -> None:
         f"p99 / max over the calls after the first. Episodes: {args.eval_episodes} at B = 1, "
         f"{8 * args.eval_episodes} at B = 8; each row ran {args.eval_repeats} times, interleaved with the others, "
         "and shows the run with the median p50 (the p50 of every run in the last column). The max is the first tick of a rollout batch, right after lerobot-eval "
-        "reset the envs: the recorder then reduces the finished batch's episodes to their records (docs/eval.md).\n",
+        "reset the envs: the recorder then reduces the finished batch's episodes to their records (docs/eval.md). "
+        f"*{FLOOR}*: the same three places doing the least they could: the read hands back the build-time packed "
+        "row through one trivial compiled call, the capture step is the shipped one (it only takes the state out of "
+        "the observation), and the corrector step converts the action to numpy, makes one trivial compiled call and "
+        "returns a float32 tensor: what any corrector built this way pays at these places, before it corrects.\n",
         "| corrector | B | calls | p50 total (us) | p99 total (us) | max (us) | first call (us) | p50 read (us) | p50 capture (us) | "
         "p50 corrector step (us) | p99 corrector step (us) | total / env step | p50 of each run (us) |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
