@@ -393,6 +393,9 @@ FRESH_DRAWS_14 = 4000
 CONFIRM14_BACKBONES = {"expert_clean": BACKBONES["expert_clean"],
                        **{f"{b}+{FRESH_DRAWS_14}": {**BACKBONES[b], "draw_offset": FRESH_DRAWS_14}
                           for b in ("expert_jitter", "expert_faulty", "expert_place_bias")}}
+# the low-pass candidates under DESIGN13's rule: n -> (the variants its design seeds choose among,
+# the backbones of its expert confirmation)
+LOWPASS_CANDIDATES = {13: (CANDIDATE_13_VARIANTS, CONFIRM13_BACKBONES), 14: ((CANDIDATE_14,), CONFIRM14_BACKBONES)}
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 # pairs in a complete LIBERO cell (10 tasks x 5 init states): the block sections show complete cells
@@ -630,7 +633,7 @@ def candidate_verdict(records, learned, seeds, expert_names, lift_first: int, ca
     return rows, ok
 
 
-def candidate13_verdict(records, learned, seeds, expert_names, lift_first: int, cand: str,
+def lowpass_verdict(records, learned, seeds, expert_names, lift_first: int, cand: str,
                         jitter: str) -> tuple[list[str], bool | None, bool | None, int]:
     """Candidate 13's variant `cand` against candidate 12 and baseline on one block (DESIGN13's rule):
     rows, whether (a) holds (the jitter expert's jerk / baseline's <= JERK_GOAL), whether (b) and (c)
@@ -659,12 +662,12 @@ def candidate13_verdict(records, learned, seeds, expert_names, lift_first: int, 
     return rows, jit["jerk_ratio"] <= JERK_GOAL, no_harm, net
 
 
-def candidate13_choice(records, learned, variants=CANDIDATE_13_VARIANTS) -> str | None:
+def lowpass_choice(records, learned, variants=CANDIDATE_13_VARIANTS) -> str | None:
     """The variant DESIGN13's rule chooses on the design seeds among `variants` (candidate 14: its
     one), or None (none meets (a)-(c), or a cell is missing)."""
     met = {}
     for cand in variants:
-        _, jerk_ok, no_harm, net = candidate13_verdict(records, learned, DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN,
+        _, jerk_ok, no_harm, net = lowpass_verdict(records, learned, DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN,
                                                        cand, "expert_jitter")
         if jerk_ok and no_harm:
             met[cand] = net
@@ -697,12 +700,12 @@ def _lowpass_sections(records, learned, cand: str, offset: int, confirm_backbone
              "learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)", None,
              tuple(confirm_backbones), LIFT_CONFIRM)):
         if seeds is None:
-            rows, jerk_ok, no_harm, net = candidate13_verdict(
+            rows, jerk_ok, no_harm, net = lowpass_verdict(
                 [r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
                 [r for r in learned if r["seed"] in CONFIRM11_SEEDS], range(0, 50), experts, first, cand,
                 f"expert_jitter+{offset}")
         else:
-            rows, jerk_ok, no_harm, net = candidate13_verdict(records, learned, seeds, experts, first, cand,
+            rows, jerk_ok, no_harm, net = lowpass_verdict(records, learned, seeds, experts, first, cand,
                                                               "expert_jitter")
         if rows:
             lines += ["", f"## {section}. {heading}, {title}: (a) the jitter expert's jerk <= {JERK_GOAL} x baseline's "
@@ -840,7 +843,7 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
         lines += _lowpass_sections(records, learned, cand, FRESH_DRAWS_13, CONFIRM13_BACKBONES, "3l", f"Candidate 13 (`{cand}`)",
                                    "DESIGN13")
     if any(r["config"] in CANDIDATE_13_VARIANTS for r in records):
-        lines += ["", f"Candidate 13's variant chosen on the design seeds: {candidate13_choice(records, learned) or 'none'}."]
+        lines += ["", f"Candidate 13's variant chosen on the design seeds: {lowpass_choice(records, learned) or 'none'}."]
     lines += _lowpass_sections(records, learned, CANDIDATE_14, FRESH_DRAWS_14, CONFIRM14_BACKBONES, "3m",
                                f"Candidate 14 (`{CANDIDATE_14}`: candidate 13a in approach, grasp and place only, "
                                "alpha_max 0.8)", "DESIGN14")

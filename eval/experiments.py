@@ -669,24 +669,24 @@ LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,a
            "diffusion_chunk")
 
 
-def _confirm13_choice(n: int = 13) -> str | None:
-    """What DESIGN13's rule chooses from the design units on disk of candidate n (13: its two variants;
-    14: its one), or None (none meets the rule, or a cell is missing)."""
+def _lowpass_choice(n: int) -> str | None:
+    """What DESIGN13's rule chooses from the design units on disk of low-pass candidate n (13: among
+    its two variants; 14: its one), or None (none meets the rule, or a cell is missing)."""
     import efficacy as ef
 
     records, _, _ = _present(_efficacy_units([f"design{n}"], EXPERTS.split(",")), RESULTS / "efficacy")
     names = LEARNED.split(",")
     learned, _, _ = _present(_learned_units([f"learned{n}"], names, {b: Path("policies/checkpoints") / b for b in names}),
                              RESULTS / "learned")
-    return ef.candidate13_choice(records, learned, ef.CANDIDATE_13_VARIANTS if n == 13 else (ef.CANDIDATE_14,))
+    return ef.lowpass_choice(records, learned, ef.LOWPASS_CANDIDATES[n][0])
 
 
-def _confirm13_configs(n: int = 13) -> dict:
-    """Baseline, candidate 12 and what the design seeds chose of candidate n (none before they chose:
-    then the confirmation stages hold the references only, and `efficacy` refuses to run them)."""
+def _lowpass_confirm_configs(n: int) -> dict:
+    """Baseline, candidate 12 and what the design seeds chose of low-pass candidate n (none before they
+    chose: then the confirmation stages hold the references only, and `efficacy` refuses to run them)."""
     import efficacy as ef
 
-    chosen = _confirm13_choice(n)
+    chosen = _lowpass_choice(n)
     return {name: ef.COMPARED[name] for name in ("baseline", ef.CANDIDATE_12, *([chosen] if chosen else []))}
 
 
@@ -736,23 +736,19 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
     if "confirm12" in stages:  # init states 35-39, fresh failure draws seed + 2000 (ef.CONFIRM12_BACKBONES)
         units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM12_BACKBONES[b]) for name, cfg in ef.DESIGN12.items()
                   for b in ef.CONFIRM12_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
-    if "confirm13" in stages:  # the chosen variant, init states 35-39, fresh failure draws seed + 3000
-        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM13_BACKBONES[b])
-                  for name, cfg in _confirm13_configs().items()
-                  for b in ef.CONFIRM13_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
-    if "confirm14" in stages:  # candidate 14 (if chosen), init states 35-39, fresh failure draws seed + 4000
-        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM14_BACKBONES[b])
-                  for name, cfg in _confirm13_configs(14).items()
-                  for b in ef.CONFIRM14_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
+    for n, (_, fresh) in ef.LOWPASS_CANDIDATES.items():  # what candidate n's design seeds chose, init states
+        if f"confirm{n}" in stages:  # 35-39 with fresh failure draws (13: seed + 3000, 14: seed + 4000)
+            units += [Unit(b, name, cfg.to_dict(), t, s, 1, fresh[b]) for name, cfg in _lowpass_confirm_configs(n).items()
+                      for b in fresh for t in range(10) for s in ef.CONFIRM9_SEEDS]
     lift_stages = {"lift": ((ef.LIFT_DESIGN, ef.LIFT_CONFIRM), {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}),
                    "design7": ((ef.LIFT_DESIGN,), ef.DESIGN7), "confirm7": ((ef.LIFT_CONFIRM,), ef.CONFIRM7),
                    "design9": ((ef.LIFT_DESIGN,), ef.DESIGN9), "design10": ((ef.LIFT_DESIGN,), ef.DESIGN10),
                    "confirm10": ((ef.LIFT_CONFIRM,), ef.DESIGN10), "design12": ((ef.LIFT_DESIGN,), ef.DESIGN12),
                    "confirm12": ((ef.LIFT_CONFIRM,), ef.DESIGN12), "design13": ((ef.LIFT_DESIGN,), ef.DESIGN13),
                    "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14)}
-    for n in (13, 14):
+    for n in ef.LOWPASS_CANDIDATES:
         if f"confirm{n}" in stages:
-            lift_stages[f"confirm{n}"] = ((ef.LIFT_CONFIRM,), _confirm13_configs(n))
+            lift_stages[f"confirm{n}"] = ((ef.LIFT_CONFIRM,), _lowpass_confirm_configs(n))
     for stage, (blocks, lift_cfgs) in lift_stages.items():
         if stage not in stages:
             continue
@@ -812,14 +808,11 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
         blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN12))
     if "learned12_confirm" in stages:  # and on init states 10-14
         blocks.append((ef.CONFIRM11_SEEDS, names, ef.DESIGN12))
-    if "learned13" in stages:  # candidate 13's variants (and candidate 12, their reference), every ACT, 0-4
-        blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN13))
-    if "learned13_confirm" in stages:  # the chosen variant on init states 10-14
-        blocks.append((ef.CONFIRM11_SEEDS, names, _confirm13_configs()))
-    if "learned14" in stages:  # candidate 14 (and candidate 12, its reference), every learned ACT, 0-4
-        blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN14))
-    if "learned14_confirm" in stages:  # candidate 14, if the design seeds chose it, on init states 10-14
-        blocks.append((ef.CONFIRM11_SEEDS, names, _confirm13_configs(14)))
+    for n, design in ((13, ef.DESIGN13), (14, ef.DESIGN14)):  # the low-pass candidates (and candidate 12,
+        if f"learned{n}" in stages:  # their reference), every learned ACT, 0-4
+            blocks.append((ef.DESIGN_SEEDS, names, design))
+        if f"learned{n}_confirm" in stages:  # what the design seeds chose, on init states 10-14
+            blocks.append((ef.CONFIRM11_SEEDS, names, _lowpass_confirm_configs(n)))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
@@ -849,8 +842,8 @@ def efficacy(args) -> None:
     unknown = [b for b in experts if b not in ef.BACKBONES]
     if unknown:
         raise SystemExit(f"experiments: unknown expert backbone(s) {unknown}; choose from {', '.join(ef.BACKBONES)}")
-    for n in (13, 14):
-        if {f"confirm{n}", f"learned{n}_confirm"} & set(stages) and _confirm13_choice(n) is None:
+    for n in ef.LOWPASS_CANDIDATES:
+        if {f"confirm{n}", f"learned{n}_confirm"} & set(stages) and _lowpass_choice(n) is None:
             raise SystemExit(f"experiments: candidate {n} did not meet its rule on the design seeds (or a design{n} / "
                              f"learned{n} cell is missing): its confirmation is not run (eval/efficacy.py DESIGN{n})")
     _, secs = run_units(_efficacy_units(stages, experts), out, args.workers, args.backend)
