@@ -60,9 +60,9 @@ DEFAULT_V2 = "default v2"
 # candidate 6 (the shipped default from 2026-11-24 until candidate 10), frozen (the release assist and the way it
 # judges a hold still, candidates 10 and 12, off): the earlier candidates
 # are written as changes of it, and its units on disk keep matching it whatever the preset becomes
-DEFAULT_6 = PRESETS["default"].replace(release_assist_m=0.0, assist_still="action", lowpass="off",
-                                      lowpass_phases="approach,grasp,transport,place", lowpass_space="action",
-                                      lowpass_alpha_max=0.6, lowpass_rough="ema")
+DEFAULT_6 = PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
+                          veto_reach_m=0.10, veto_reopen=False, place_rule="release_veto", redirect_tol_m=0.02,
+                          release_carry=True, phase_ref="object")
 V2 = DEFAULT_6.replace(place_rule="redirect", redirect_tol_m=0.0, veto_reopen=True, release_carry=False)
 # candidate 4, the third shipped default (v2 with the release veto in place of the redirection). Its
 # units first ran as "default, release_veto=0.02", were renamed "default" when it shipped and
@@ -136,6 +136,20 @@ CANDIDATE_13B = "default + robust low-pass, lead"
 # + place 0.57 (3 / 1), at alpha_max 0.7 0.50 (2 / 1), at 0.8 0.46 (4 / 3); approach + transport 0.70
 # (1 / 3). Alpha 0.8: the one setting with a margin on the jerk goal and no net loss.
 CANDIDATE_14 = "default + robust low-pass off the carry"
+# candidate 15: candidate 12 (the shipped default) + the lift assist (lift_assist_u 0.5 action units
+# after assist_steps 10), the grasp phase's authority 1 and the paper's grasp guidance off (beta 0: its
+# candidate is the policy's action, so the lift is the grasp phase's only change). Grounded in the
+# single-step ACTs' failures under the shipped default on the design block (LIBERO init states 0-4, the
+# eight tasks their teacher solves; probe stepping the harness's scene, not committed): of
+# act_single_mid's 19 failures there, 12 (T2, T3, T7) end with the gripper closed on the bowl's rim,
+# the fingers stopped 7-15 mm apart (the teacher's rim grasps stop at ~4 mm), the hand still and the z
+# command ~-0.02 action units to the end; of act_single_weak's 24, 11 (T0, T1, T8). A probe raising
+# such a hold's z command to 0.5 after 10 still steps, until the bowl leaves the grasp phase, turned 11
+# of act_single_mid's 12 (T2, T3, T7, init states 0-4) and 5 of act_single_weak's 7 on T0 and T8, and
+# lost none of their successes there. The same probe closing the gripper of a hand hovering open and
+# still at the bowl (act_single_weak's T3 / T9, the policy's gripper command -0.4 to -0.8) fired on 2
+# of 15 episodes: not pursued.
+CANDIDATE_15 = "default + lift assist"
 
 # Each correction alone (the others' authority 0), phys mode.
 ALONE = {
@@ -214,6 +228,8 @@ COMPARED = {
     CANDIDATE_13B: DEFAULT_6.replace(release_assist_m=0.04, assist_still="hand", lowpass="adaptive",
                                      lowpass_space="target", lowpass_alpha_max=0.6, lowpass_rough="median",
                                      lowpass_lag="compensate"),
+    CANDIDATE_15: DEFAULT_6.replace(release_assist_m=0.04, assist_still="hand", phase_caps=(0.0, 1.0, 0.0, 1.0),
+                                    beta=0.0, lift_assist_u=0.5),
     CANDIDATE_14: DEFAULT_6.replace(release_assist_m=0.04, assist_still="hand", lowpass="adaptive",
                                     lowpass_space="target", lowpass_alpha_max=0.8, lowpass_rough="median",
                                     lowpass_phases="approach,grasp,place"),
@@ -264,7 +280,7 @@ LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4, CA
 CANDIDATE_7_VARIANTS = (CANDIDATE_7, CANDIDATE_7 + ", alpha_max=0.8", CANDIDATE_7 + ", speed_hi=1",
                         CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1", CANDIDATE_8)
 LIFT_REPORTED = (*LIFT_CONFIGS, *CANDIDATE_7_VARIANTS, CANDIDATE_9, CANDIDATE_10, CANDIDATE_12,
-                 CANDIDATE_13, CANDIDATE_13B, CANDIDATE_14)  # rows of the Lift / Fetch sections
+                 CANDIDATE_13, CANDIDATE_13B, CANDIDATE_14, CANDIDATE_15)  # rows of the Lift / Fetch sections
 # candidate 7's variants on the design seeds (LIBERO 0-4 and Lift / Fetch 7-26: stage design7)
 DESIGN7 = {name: COMPARED[name] for name in ("baseline", *CANDIDATE_7_VARIANTS)}
 # Chosen on the design seeds: candidate 7 (alpha_max 0.6, no speed fading): the jitter expert's jerk
@@ -396,6 +412,18 @@ CONFIRM14_BACKBONES = {"expert_clean": BACKBONES["expert_clean"],
 # the low-pass candidates under DESIGN13's rule: n -> (the variants its design seeds choose among,
 # the backbones of its expert confirmation)
 LOWPASS_CANDIDATES = {13: (CANDIDATE_13_VARIANTS, CONFIRM13_BACKBONES), 14: ((CANDIDATE_14,), CONFIRM14_BACKBONES)}
+# Candidate 15 against candidate 12 (the shipped default, its reference) and baseline: design seeds
+# (design15: every expert on LIBERO 0-4, Lift / Fetch 7-26; learned15: every learned ACT on 0-4), then
+# blocks no decision about it looked at (confirm15: the failure experts on init states 35-39 with
+# candidate 14's fresh draws, seed + 4000, and the clean expert's episodes there: their baseline and
+# candidate 12 units ran for candidate 14's confirmation, candidate 15 was designed from the learned
+# ACTs' design block alone; Lift / Fetch 100-119; learned15_confirm: the ACTs on init states 10-14).
+# Rule, written before any of its stages ran (DESIGN10's, with candidate 12 as the reference): it
+# replaces the shipped default if on each of the two blocks (a) pooled over the learned ACTs its paired
+# difference against candidate 12 has a 95 % interval above 0, (b) no backbone, expert or learned,
+# loses more than 1 pair net against candidate 12, and (c) in every Lift / Fetch cell it succeeds at
+# most 1 of 20 fewer times than candidate 12. The confirmation runs only if the design seeds pass.
+DESIGN15 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_12, CANDIDATE_15)}
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 # pairs in a complete LIBERO cell (10 tasks x 5 init states): the block sections show complete cells
@@ -687,6 +715,28 @@ def candidate11_verdict(learned, seeds) -> tuple[list[str], bool | None]:
     return [*rows, row], ok and above
 
 
+def _candidate_sections(records, learned, cand: str, ref: str, label: str, confirm_backbones: dict,
+                        learned_confirm_seeds: range, confirm_title: str, heading: str, rule: str) -> list[str]:
+    """The report's sections of a candidate under DESIGN10's rule against its reference `ref`: on the
+    design seeds and on its confirmation blocks (the experts `confirm_backbones` on 35-39, the learned
+    ACTs on `learned_confirm_seeds`, Lift / Fetch 100-119), its rows and the rule's verdict."""
+    lines = []
+    for title, seeds, experts, first in (
+            ("design seeds (LIBERO init states 0-4, Lift / Fetch 7-26)", DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN),
+            (confirm_title, None, tuple(confirm_backbones), LIFT_CONFIRM)):
+        if seeds is None:  # the experts' and the learned ACTs' confirmation blocks differ
+            rows, ok = candidate_verdict([r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
+                                         [r for r in learned if r["seed"] in learned_confirm_seeds], range(0, 50), experts,
+                                         first, cand, ref, label)
+        else:
+            rows, ok = candidate_verdict(records, learned, seeds, experts, first, cand, ref, label)
+        if rows:
+            verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
+            lines += ["", f"## {heading}, {title}: {verdict} the rule written before it ran (eval/efficacy.py {rule})\n",
+                      *PAIRED_HEAD, *rows]
+    return lines
+
+
 def _lowpass_sections(records, learned, cand: str, offset: int, confirm_backbones: dict, section: str, heading: str,
                       rule: str) -> list[str]:
     """The report's sections of a low-pass candidate (13's variants, 14) on the design seeds and on its
@@ -793,22 +843,13 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                   f"on init states 35-39 with fresh failure draws (seed + {FRESH_DRAWS}; `+{FRESH_DRAWS}` in the "
                   "name), n = 50 per cell, the shipped default beside it; no decision looked at these episodes "
                   "(the clean expert's are section 3g's, candidate 9 new on them)\n", *PAIRED_HEAD, *rows]
-    for title, seeds, experts, first in (
-            ("design seeds (LIBERO init states 0-4, Lift / Fetch 7-26)", DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN),
-            ("confirmation (experts on init states 35-39 with fresh draws, the learned ACTs on 5-9, Lift / Fetch "
-             "100-119; no decision about it looked at these)", None, tuple(CONFIRM9_BACKBONES), LIFT_CONFIRM)):
-        if seeds is None:  # the experts' and the learned ACTs' confirmation blocks differ
-            rows, ok = candidate_verdict([r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
-                                           [r for r in learned if r["seed"] in CONFIRM_SEEDS], range(0, 50), experts, first)
-        else:
-            rows, ok = candidate_verdict(records, learned, seeds, experts, first)
-        if rows:
-            verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
-            lines += ["", f"## 3i. Candidate 10 (candidate 6 + the release assist at 4 cm; the shipped default since "
-                      f"2026-11-25), {title}: {verdict} the rule written before it ran (eval/efficacy.py DESIGN10: pooled "
-                      "over the learned ACTs an interval above 0 against candidate 6, named `default` here, the shipped "
-                      "default until then; no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of "
-                      "20 of it)\n", *PAIRED_HEAD, *rows]
+    lines += _candidate_sections(
+        records, learned, CANDIDATE_10, CANDIDATE_6, "candidate 10", CONFIRM9_BACKBONES, CONFIRM_SEEDS,
+        "confirmation (experts on init states 35-39 with fresh draws, the learned ACTs on 5-9, Lift / Fetch 100-119; no "
+        "decision about it looked at these)",
+        "3i. Candidate 10 (candidate 6 + the release assist at 4 cm; the shipped default since 2026-11-25)",
+        "DESIGN10: pooled over the learned ACTs an interval above 0 against candidate 6, named `default` here, the "
+        "shipped default until then; no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it")
     for title, seeds in (("design block, init states 0-4", DESIGN_SEEDS),
                          ("confirmation block, init states 10-14 (no corrector decision looked at it; the ACTs' "
                           "demonstrations were recorded there)", CONFIRM11_SEEDS)):
@@ -820,25 +861,14 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                       "the rule written before it ran (eval/efficacy.py DESIGN11: pooled over the three chunked ACTs "
                       f"an interval above 0 against candidate 10, `{CANDIDATE_10}` here; none losing more than 1 pair "
                       "net against it)\n", *PAIRED_HEAD, *rows]
-    for title, seeds, experts, first in (
-            ("design seeds (LIBERO init states 0-4, Lift / Fetch 7-26)", DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN),
-            (f"confirmation (the failure experts on init states 35-39 with fresh draws, seed + {FRESH_DRAWS_12}; the "
-             "learned ACTs on 10-14, where their demonstrations were recorded; Lift / Fetch 100-119; no decision "
-             "about it looked at these)", None, tuple(CONFIRM12_BACKBONES), LIFT_CONFIRM)):
-        if seeds is None:  # the experts' and the learned ACTs' confirmation blocks differ
-            rows, ok = candidate_verdict([r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
-                                         [r for r in learned if r["seed"] in CONFIRM11_SEEDS], range(0, 50), experts,
-                                         first, CANDIDATE_12, CANDIDATE_10, "candidate 12")
-        else:
-            rows, ok = candidate_verdict(records, learned, seeds, experts, first, CANDIDATE_12, CANDIDATE_10,
-                                         "candidate 12")
-        if rows:
-            verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
-            lines += ["", f"## 3k. Candidate 12 (candidate 10 whose release assist judges a hold still by the hand, "
-                      f"`assist_still=hand`), {title}: {verdict} the rule written before it ran (eval/efficacy.py "
-                      f"DESIGN12: pooled over the learned ACTs an interval above 0 against candidate 10, `{CANDIDATE_10}` "
-                      "here; no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it)\n",
-                      *PAIRED_HEAD, *rows]
+    lines += _candidate_sections(
+        records, learned, CANDIDATE_12, CANDIDATE_10, "candidate 12", CONFIRM12_BACKBONES, CONFIRM11_SEEDS,
+        f"confirmation (the failure experts on init states 35-39 with fresh draws, seed + {FRESH_DRAWS_12}; the learned "
+        "ACTs on 10-14, where their demonstrations were recorded; Lift / Fetch 100-119; no decision about it looked at "
+        "these)",
+        "3k. Candidate 12 (candidate 10 whose release assist judges a hold still by the hand, `assist_still=hand`)",
+        f"DESIGN12: pooled over the learned ACTs an interval above 0 against candidate 10, `{CANDIDATE_10}` here; no "
+        "backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it")
     for cand in CANDIDATE_13_VARIANTS:
         lines += _lowpass_sections(records, learned, cand, FRESH_DRAWS_13, CONFIRM13_BACKBONES, "3l", f"Candidate 13 (`{cand}`)",
                                    "DESIGN13")
@@ -847,6 +877,14 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
     lines += _lowpass_sections(records, learned, CANDIDATE_14, FRESH_DRAWS_14, CONFIRM14_BACKBONES, "3m",
                                f"Candidate 14 (`{CANDIDATE_14}`: candidate 13a in approach, grasp and place only, "
                                "alpha_max 0.8)", "DESIGN14")
+    lines += _candidate_sections(
+        records, learned, CANDIDATE_15, CANDIDATE_12, "candidate 15", CONFIRM14_BACKBONES, CONFIRM11_SEEDS,
+        f"confirmation (the failure experts on init states 35-39 with candidate 14's fresh draws, seed + "
+        f"{FRESH_DRAWS_14}; the learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)",
+        "3n. Candidate 15 (candidate 12 + the lift assist: a closed, still, unlifted hold is lifted, "
+        "`lift_assist_u=0.5`)",
+        f"DESIGN15: pooled over the learned ACTs an interval above 0 against candidate 12, `{CANDIDATE_12}` here; no "
+        "backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it")
     lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
     if lift:
         lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",

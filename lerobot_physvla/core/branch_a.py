@@ -1,7 +1,7 @@
 """Branch A over B envs: validity, geometry, phase (eq. 3) and the phase's correction.
 
     approach   corrections.approach_veto
-    grasp      corrections.grasp_guidance
+    grasp      corrections.grasp_guidance, then corrections.lift_assist (lift_assist_u > 0)
     transport  corrections.transport_smoothing
     place      corrections.place_deceleration        (eq. 5), or corrections.place_redirect
                (place_rule=redirect), or corrections.release_veto (place_rule=release_veto),
@@ -28,10 +28,11 @@ from numba import njit
 
 from lerobot_physvla.core.corrections.approach_veto import approach_veto
 from lerobot_physvla.core.corrections.base import (
-    ACTIVE, ASSIST_M, CARRIED, CARRY_REACH_M, D_OBJ_XY, D_TGT_XY, EEF, HIGH, HOLD, LIFT, LOW, N_GEO, OBJ,
-    PHASE_REF_OBJECT, PLACE_RULE, RELEASE_CARRY, STALL, TGT,
+    ACTIVE, ASSIST_M, CARRIED, CARRY_REACH_M, D_OBJ_XY, D_TGT_XY, EEF, FINGERS, HIGH, HOLD, LIFT, LIFT_ASSIST_U,
+    LIFT_STALL, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_RULE, RELEASE_CARRY, STALL, TGT,
 )
 from lerobot_physvla.core.corrections.grasp_guidance import grasp_guidance
+from lerobot_physvla.core.corrections.lift_assist import lift_assist
 from lerobot_physvla.core.corrections.place_deceleration import place_deceleration
 from lerobot_physvla.core.corrections.place_redirect import place_redirect
 from lerobot_physvla.core.corrections.release_assist import release_assist
@@ -39,7 +40,7 @@ from lerobot_physvla.core.corrections.release_veto import release_veto
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
 from lerobot_physvla.core.corrections.transport_smoothing import transport_smoothing
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT, phase_of
-from lerobot_physvla.core.state import INVALID_STATE, NONFINITE_ACTION, NONFINITE_STATE, OK
+from lerobot_physvla.core.state import INVALID_STATE, NONFINITE_ACTION, NONFINITE_STATE, OK, field_offsets
 
 _CORE = Path(__file__).resolve().parent
 # every file compiled into phase_step: this one, the FSM, the state's status codes, the corrections
@@ -56,6 +57,7 @@ def source_key(files=SOURCE_FILES) -> int:
 
 
 SOURCE_KEY = source_key()
+FINGERS_AT = field_offsets(1)["gripper"]  # a header field: the same offset in every packed state
 
 
 @njit(error_model="numpy")
@@ -67,6 +69,8 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
         approach_veto(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == GRASP:
         grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit)
+        if p[LIFT_ASSIST_U] > 0.0:
+            lift_assist(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == TRANSPORT:
         transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == PLACE and p[PLACE_RULE] > 1.5:
@@ -82,6 +86,8 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
         if phase != PLACE:
             mem[HOLD] = 0.0
             mem[STALL] = 0.0
+        if phase != GRASP:
+            mem[LIFT_STALL] = 0.0
     for k in range(a_phys.shape[0]):
         a_phys[k] = min(max(a_phys[k], p[LOW]), p[HIGH])
 
@@ -152,7 +158,7 @@ def _compile(key: int):
             lift = g[OBJ + 2] - row[o[3]]
             ref = OBJ if p[PHASE_REF_OBJECT] > 0.5 and lift > h_lift else EEF  # what d_tgt_xy measures from
             d_tgt = np.hypot(g[ref] - g[TGT], g[ref + 1] - g[TGT + 1])
-            g[D_OBJ_XY], g[D_TGT_XY], g[LIFT] = d_obj, d_tgt, lift
+            g[D_OBJ_XY], g[D_TGT_XY], g[LIFT], g[FINGERS] = d_obj, d_tgt, lift, row[FINGERS_AT]
             geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3] = d_obj, d_tgt, lift, g[EEF + 2] - g[OBJ + 2]
             ph = phase_of(d_obj, d_tgt, lift, d_grasp, h_lift)  # eq. 3
             if p[RELEASE_CARRY] > 0.5 and p[PLACE_RULE] > 1.5:

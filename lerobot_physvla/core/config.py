@@ -178,11 +178,18 @@ class PhysVLAConfig:
             this far above the target's, the target at the object's resting level) for
             assist_steps control steps, commanding closed; kept open while the phase stays place.
             Metres; 0 = off (corrections/release_assist.py: the traced failure).
-        assist_steps: control steps in a row the hold must last before release_assist_m opens.
+        assist_steps: control steps in a row the hold must last before release_assist_m opens (and
+            before lift_assist_u lifts).
         assist_still: what makes a hold still for release_assist_m: action (every position
             channel of the policy's command below 0.05 action units, each step) | hand (the
             end effector within 3 mm of where the hold began, whatever the policy commands: a
             chunked ACT that holds still commands a small swing inside each chunk).
+        lift_assist_u: grasp phase: lift a policy's hand that holds something (fingers stopped at
+            least 2.5 mm apart, gripper commanded closed) and stays still without lifting it, for
+            assist_steps control steps: the z command is raised to at least this many action units
+            until the object is lifted out of the grasp phase (or the hand has risen 8 cm without
+            it); 0 = off (corrections/lift_assist.py: the traced failure). Delta layouts only; it
+            acts with the grasp phase's authority (phase_caps), so it needs that above 0.
         phase_ref: what d_tgt_xy of eq. (3) measures from once the object is lifted: eef (paper)
             | object (the held object's centre; a rim grasp holds it centimetres off the hand).
         lowpass: off | adaptive: a low-pass on the executed position channels whose strength
@@ -238,6 +245,7 @@ class PhysVLAConfig:
     release_assist_m: float = 0.0
     assist_steps: int = 10
     assist_still: str = "action"
+    lift_assist_u: float = 0.0
     phase_ref: str = "eef"
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
@@ -307,6 +315,15 @@ class PhysVLAConfig:
                              "redirect_tol_m >= 0, hold_steps >= 0, release_assist_m >= 0 and assist_steps >= 1, got "
                              f"{self.veto_height_m}, {self.veto_reach_m}, {self.redirect_gain}, {self.redirect_tol_m}, "
                              f"{self.hold_steps}, {self.release_assist_m}, {self.assist_steps}")
+        if not 0.0 <= self.lift_assist_u <= 1.0:
+            raise ValueError(f"physvla: lift_assist_u must lie in [0, 1] action units, got {self.lift_assist_u}")
+        if self.lift_assist_u > 0.0 and self.action_layout.absolute:
+            raise ValueError("physvla: lift_assist_u raises a delta layout's z command; this layout's positions are "
+                             "absolute targets: leave lift_assist_u at 0")
+        if self.lift_assist_u > 0.0 and self.caps[1] == 0.0:
+            raise ValueError("physvla: lift_assist_u acts with the grasp phase's authority, which is 0 here: set "
+                             "phase_caps with a grasp entry above 0 (e.g. phase_caps=(0, 1, 0, 1) with beta=0: the "
+                             "paper's grasp guidance then leaves the action as it is)")
 
     @property
     def caps(self) -> tuple[float, float, float, float]:

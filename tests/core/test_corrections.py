@@ -310,3 +310,82 @@ def test_release_assist_leaves_every_other_hold_alone(case):
         a[6] = -1.0
     outs = [run(release_assist, a, idx, geo, p, mem) for _ in range(6)]
     assert all(np.array_equal(o, a) for o in outs) and mem[STALL] == 0
+
+
+def _rim_hold(**cfg):
+    """The traced single-step ACT hold: the gripper closed on the bowl's rim 4.7 cm off its centre, the
+    fingers stopped 13 mm apart, the hand 2.6 cm above the bowl's origin, z command -0.02."""
+    from lerobot_physvla.core.corrections.base import FINGERS
+
+    idx, geo, p, mem = ctx(eef=(0.019, -0.047, 0.924), obj=(0.0, 0.0, 0.898), phase_caps=(0.0, 1.0, 0.0, 1.0), beta=0.0,
+                           **{"lift_assist_u": 0.5, "assist_steps": 3, **cfg})
+    geo[FINGERS] = 0.013
+    return idx, geo, p, mem, np.array([0.02, 0.0, -0.02, 0.0, 0.0, 0.0, 1.0])
+
+
+def test_lift_assist_lifts_a_still_closed_hold_after_assist_steps_and_stops_where_the_hand_rose_alone():
+    from lerobot_physvla.core.corrections.base import EEF, LIFT_STALL
+    from lerobot_physvla.core.corrections.lift_assist import RISE_M, lift_assist
+
+    idx, geo, p, mem, hold = _rim_hold()
+    # a look-ahead step of a chunk neither counts nor lifts
+    assert run(lift_assist, hold, idx, geo, p, mem, commit=False)[2] == -0.02 and mem[LIFT_STALL] == 0
+    zs = [run(lift_assist, hold, idx, geo, p, mem)[2] for _ in range(3)]
+    assert zs == [-0.02, -0.02, 0.5]  # lifted on the third still step in a row
+    out = run(lift_assist, hold, idx, geo, p, mem)
+    assert out[2] == 0.5 and np.array_equal(np.delete(out, 2), np.delete(hold, 2))  # only z changes
+    up = hold.copy()
+    up[2] = 0.8
+    assert run(lift_assist, up, idx, geo, p, mem)[2] == 0.8  # a policy lifting faster keeps its own command
+    geo[EEF + 2] += RISE_M + 0.001  # the hand rose 8 cm and the bowl stayed (the phase is still grasp): stop
+    assert run(lift_assist, hold, idx, geo, p, mem)[2] == -0.02 and mem[LIFT_STALL] == -1
+    geo[EEF + 2] -= RISE_M + 0.001  # spent for this hold, even back where it began
+    assert [run(lift_assist, hold, idx, geo, p, mem)[2] for _ in range(5)] == [-0.02] * 5
+    opened = hold.copy()
+    opened[6] = -1.0  # the policy opens: a new hold may be lifted again
+    run(lift_assist, opened, idx, geo, p, mem)
+    assert mem[LIFT_STALL] == 0
+    assert [run(lift_assist, hold, idx, geo, p, mem)[2] for _ in range(3)] == [-0.02, -0.02, 0.5]
+
+
+@pytest.mark.parametrize("case", ["moving", "fingers_on_nothing", "fingers_closing", "commanded_open", "no_gripper"])
+def test_lift_assist_leaves_every_other_hold_alone(case):
+    from lerobot_physvla.core.corrections.base import EEF, FINGERS, LIFT_STALL
+    from lerobot_physvla.core.corrections.lift_assist import lift_assist
+
+    idx, geo, p, mem, a = _rim_hold()
+    outs = []
+    for k in range(6):
+        if case == "moving":
+            geo[EEF + 2] = 0.924 + 0.004 * k  # the policy lifts by itself, 4 mm a step
+        elif case == "fingers_on_nothing":
+            geo[FINGERS] = 0.001  # closed on nothing (act_single_mid T1 / 0): no hold to lift
+        elif case == "fingers_closing":
+            geo[FINGERS] = 0.08 - 0.012 * k  # still closing: not yet a hold
+        elif case == "commanded_open":
+            a[6] = -1.0
+        elif case == "no_gripper":
+            idx = idx.copy()
+            idx[3] = -1
+        outs.append(run(lift_assist, a, idx, geo, p, mem))
+    assert all(np.array_equal(o, a) for o in outs) and mem[LIFT_STALL] <= 2
+
+
+def test_branch_a_runs_the_lift_assist_in_the_grasp_phase_only_and_forgets_a_hold_outside_it():
+    from lerobot_physvla.core.branch_a import branch_a_row
+    from lerobot_physvla.core.corrections.base import LIFT_STALL
+    from lerobot_physvla.core.phase import GRASP, TRANSPORT
+
+    idx, geo, p, mem, hold = _rim_hold()
+    out = np.empty(7)
+    for _ in range(3):
+        branch_a_row(hold, out, GRASP, idx, geo, p, mem, True)
+    assert out[2] == 0.5  # beta 0: the grasp guidance leaves the action; the lift is the only change
+    np.testing.assert_array_equal(np.delete(out, 2), np.delete(hold, 2))
+    branch_a_row(hold, out, TRANSPORT, idx, geo, p, mem, True)  # lifted past h_lift: the assist ends
+    assert mem[LIFT_STALL] == 0
+    off = params(PhysVLAConfig(phase_caps=(0.0, 1.0, 0.0, 1.0), beta=0.0), LIBERO_OSC_POSE)  # lift_assist_u 0: off
+    mem[:] = 0.0
+    for _ in range(5):
+        branch_a_row(hold, out, GRASP, idx, geo, off, mem, True)
+    np.testing.assert_array_equal(out, hold)

@@ -8,7 +8,8 @@ Each correction is a numba function of one env that edits the candidate action i
     a_phys  (A,) float   the candidate, action units: read, then written
     idx     (4,) int     action channels [x, y, z, gripper] (gripper = -1 if the layout has none)
     geo     (N_GEO,)     geometry of this env: eef xyz, object xyz, target xyz (m, world),
-                         d_obj_xy, d_tgt_xy (m), lift = object height above its rest (m)
+                         d_obj_xy, d_tgt_xy (m), lift = object height above its rest (m),
+                         fingers = the gripper's opening (m)
     p       (N_PARAMS,)  parameters, indexed by the constants below, units in their names
     mem     (N_MEM,)     this env's memory (EMA state); written only when commit is True
     commit  bool         True for the step about to execute (a chunk's first), False for
@@ -28,13 +29,13 @@ from lerobot_physvla.core.config import PLACE_RULES, ActionLayout, PhysVLAConfig
 X, Y, Z, GRIPPER = range(4)
 # geo
 EEF, OBJ, TGT = 0, 3, 6  # xyz triples, m
-D_OBJ_XY, D_TGT_XY, LIFT = 9, 10, 11  # m
-N_GEO = 12
+D_OBJ_XY, D_TGT_XY, LIFT, FINGERS = 9, 10, 11, 12  # m
+N_GEO = 13
 # p
 (BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M, LIFT_BIAS_U, ALPHA_TRANSPORT, D_THRESH_M, METRES_PER_UNIT,
  GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL, PLACE_RULE, REDIRECT_GAIN, PHASE_REF_OBJECT, REDIRECT_TOL_M,
- HOLD_STEPS, RELEASE_CARRY, ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND) = range(21)
-N_PARAMS = 21
+ HOLD_STEPS, RELEASE_CARRY, ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND, LIFT_ASSIST_U) = range(22)
+N_PARAMS = 22
 # mem
 EMA = 0  # 3 entries: x, y, z, action units
 ACTIVE = 3  # 1.0 once the EMA holds a value (transport: the previous step was in transport)
@@ -42,7 +43,9 @@ HOLD = 4  # place_rule=release_veto: control steps the release has been held bac
 CARRIED = 5  # release_carry: 1.0 while the object carried to the place phase is still at the hand
 STALL = 6  # release_assist_m: control steps in a row the object has been held still over the target
 ANCHOR = 7  # 3 entries: assist_still=hand: the end effector where the hold began, m
-N_MEM = 10
+LIFT_STALL = 10  # lift_assist_u: steps in a row held still unlifted (>= assist_steps: lifting; -1: spent)
+LIFT_ANCHOR = 11  # 4 entries: lift_assist_u: the end effector (m, xyz) and the fingers' opening (m) where the hold began
+N_MEM = 15
 CARRY_REACH_M = 0.10  # release_carry: the object counts as at the hand within this of it (3-D), m
 
 
@@ -72,4 +75,5 @@ def params(cfg: PhysVLAConfig, layout: ActionLayout) -> np.ndarray:
     p[ASSIST_M] = cfg.release_assist_m
     p[ASSIST_STEPS] = cfg.assist_steps
     p[ASSIST_STILL_HAND] = cfg.assist_still == "hand"
+    p[LIFT_ASSIST_U] = cfg.lift_assist_u
     return p

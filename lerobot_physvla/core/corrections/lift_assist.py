@@ -1,0 +1,65 @@
+"""Grasp: a lift for a policy that holds the object and stays still without lifting it (beyond the
+paper; lift_assist_u > 0).
+
+    holding:  gripper commanded closed, fingers stopped >= FINGERS_M apart     (something between them)
+    still:    |p_eef - p_eef(hold began)| <= STILL_M and |fingers - fingers(hold began)| <= FINGER_STILL_M
+    after `assist_steps` control steps in a row holding and still (in the grasp phase, so not lifted):
+        a_z <- max(a_raw_z, lift_assist_u)                                      (action units)
+    until the phase leaves grasp (the object is lifted past h_lift), the policy commands open, or
+    the hand has risen RISE_M above where the hold began (the object did not follow: spent until
+    the policy opens or the phase changes)
+
+Traced failure (design block, LIBERO init states 0-4, docs/method.md "Candidate 15"): the weaker
+single-step ACTs close on the bowl's rim and then hold it, gripper closed, the hand still within
+a millimetre or two, commanding z ~ -0.02 action units, until the episode ends; the fingers stop
+7-15 mm apart where their teacher's rim grasps stop at ~4 mm, a hold their demonstrations never
+showed. Of act_single_mid's 19 failures on the tasks its teacher solves, 12 end so (T2, T3, T7); of
+act_single_weak's 24, 11 (T0, T1, T8). A policy that lifts by itself never meets the condition for
+assist_steps steps; fingers closed on nothing (~1 mm) are not a hold.
+"""
+
+from numba import njit
+
+from lerobot_physvla.core.corrections.base import (ASSIST_STEPS, EEF, FINGERS, GRIPPER, GRIPPER_OPEN, LIFT_ANCHOR,
+                                                   LIFT_ASSIST_U, LIFT_STALL, Z)
+from lerobot_physvla.core.corrections.release_assist import STILL_M
+
+FINGERS_M = 0.0025  # fingers stopped at least this far apart: they hold something, metres
+FINGER_STILL_M = 0.001  # and have stopped closing: within this of their opening where the hold began, metres
+RISE_M = 0.08  # the hand rose this far above where the hold began and the object stayed: stop, metres
+
+
+@njit(cache=True, error_model="numpy")
+def lift_assist(a_raw, a_phys, idx, geo, p, mem, commit):
+    """z command raised to lift_assist_u once the policy has held the object still, unlifted, for
+    assist_steps control steps; every other channel untouched."""
+    g, z = idx[GRIPPER], idx[Z]
+    if g < 0:
+        return
+    if not a_raw[g] * p[GRIPPER_OPEN] < 0.0:  # the policy commands open: no hold, the count restarts
+        if commit:
+            mem[LIFT_STALL] = 0.0
+        return
+    n = mem[LIFT_STALL]
+    if n < 0.0:  # spent: this hold was lifted RISE_M and the object stayed
+        return
+    if n >= p[ASSIST_STEPS]:  # lifting
+        if geo[EEF + 2] - mem[LIFT_ANCHOR + 2] <= RISE_M:
+            a_phys[z] = max(a_raw[z], p[LIFT_ASSIST_U])
+        elif commit:
+            mem[LIFT_STALL] = -1.0
+        return
+    held = geo[FINGERS] >= FINGERS_M
+    if held and n > 0.0:  # its first step is still by definition
+        moved = 0.0
+        for k in range(3):
+            moved += (geo[EEF + k] - mem[LIFT_ANCHOR + k]) ** 2
+        held = moved <= STILL_M * STILL_M and abs(geo[FINGERS] - mem[LIFT_ANCHOR + 3]) <= FINGER_STILL_M
+    if held and n + 1.0 >= p[ASSIST_STEPS]:
+        a_phys[z] = max(a_raw[z], p[LIFT_ASSIST_U])
+    if commit:
+        if held and n == 0.0:
+            for k in range(3):
+                mem[LIFT_ANCHOR + k] = geo[EEF + k]
+            mem[LIFT_ANCHOR + 3] = geo[FINGERS]
+        mem[LIFT_STALL] = n + 1.0 if held else 0.0
