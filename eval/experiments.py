@@ -692,7 +692,7 @@ def _candidate15_passed() -> bool:
                              RESULTS / "learned")
     _, ok = ef.candidate_verdict(records, learned, ef.DESIGN_SEEDS, tuple(ef.BACKBONES), ef.LIFT_DESIGN,
                                  ef.CANDIDATE_15, ef.CANDIDATE_12, "candidate 15")
-    return ok is True
+    return ok is not None and bool(ok)  # a numpy bool where every cell is there
 
 
 def _lowpass_confirm_configs(n: int) -> dict:
