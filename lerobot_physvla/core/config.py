@@ -391,19 +391,23 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # the release assist: a policy that holds the object still over the target, closed, is let go
     # (candidate 10, shipped 2026-11-25), a hold judged still by the hand, not by the command (candidate 12,
     # shipped 2026-11-25: a chunked ACT's command swings inside each chunk while its hand holds still;
-    # docs/method.md)
+    # docs/method.md); and the lift assist: a policy that holds the object closed and still in the grasp
+    # phase without lifting it is lifted (candidate 15, shipped 2026-11-25: weaker single-step ACTs close
+    # on a bowl's rim and then hold it there to the end), with the grasp phase's authority 1 and the
+    # paper's grasp guidance off (beta 0: the lift is the grasp phase's only change)
     "default": PhysVLAConfig(
-        mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), gripper_rule="veto", veto_height_m=0.06,
+        mode="phys", phase_caps=(0.0, 1.0, 0.0, 1.0), beta=0.0, gripper_rule="veto", veto_height_m=0.06,
         veto_reach_m=0.10, veto_reopen=False, place_rule="release_veto", redirect_tol_m=0.02, release_carry=True,
-        phase_ref="object", release_assist_m=0.04, assist_still="hand",
+        phase_ref="object", release_assist_m=0.04, assist_still="hand", lift_assist_u=0.5,
     ),
 }
 # on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the
 # held object is within 2 cm of the target, flung blocks the simulated SO-101 carried at transport
 # speed (eval/results/so101_faults), so it stays off on arms until a rule that knows the object's
-# speed and height is measured.
+# speed and height is measured. The lift assist (candidate 15) is off there too: it was measured on
+# LIBERO's delta-pose arm only, and it would move the arm with the grasp phase's authority.
 PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), place_rule="decelerate",
-                                            release_assist_m=0.0)
+                                            release_assist_m=0.0, lift_assist_u=0.0, beta=0.5)
 DEFAULT_PRESET = "default"
 ARM_PRESET = "arm"
 

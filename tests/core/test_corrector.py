@@ -346,3 +346,24 @@ def test_the_shipped_default_lets_go_of_a_still_hold_over_the_target_and_the_arm
             assert grip == [0.87] * 15, name
         else:
             assert grip[: opens_at - 1] == [0.87] * (opens_at - 1) and grip[opens_at - 1:] == [-1.0] * (16 - opens_at)
+
+
+def test_the_shipped_default_lifts_a_still_rim_hold_and_the_arm_preset_does_not():
+    """Candidate 15's traced failure (a weak single-step ACT closes on the bowl's rim, the fingers stop
+    13 mm apart, and holds it still, z command -0.02, to the end): the default raises z to
+    lift_assist_u from the assist_steps-th step on, every other channel the policy's; `arm` never."""
+    from lerobot_physvla.core.config import PRESETS
+
+    st = make_state(eef=(0.019, -0.047, 0.924), obj=(0.0, 0.0, 0.898), target=(0.2, 0.1, 0.9))
+    st.gripper[:] = 0.013
+    hold = np.array([[0.02, 0.0, -0.02, 0.0, 0.0, 0.0, 1.0]])  # still, closed (robosuite: + = close)
+    for name, lifts_at in (("default", PRESETS["default"].assist_steps), ("arm", None)):
+        c = Corrector(PRESETS[name])
+        outs = [c(hold, st)[0] for _ in range(15)]
+        assert all(c.last.phase == Phase.GRASP)
+        z = [o[2] for o in outs]
+        if lifts_at is None:
+            assert z == [-0.02] * 15, name
+        else:
+            assert z[: lifts_at - 1] == [-0.02] * (lifts_at - 1) and z[lifts_at - 1:] == [0.5] * (16 - lifts_at)
+        assert all(np.array_equal(np.delete(o, 2), np.delete(hold[0], 2)) for o in outs), name
