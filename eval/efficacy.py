@@ -423,6 +423,11 @@ LOWPASS_CANDIDATES = {13: (CANDIDATE_13_VARIANTS, CONFIRM13_BACKBONES), 14: ((CA
 # difference against candidate 12 has a 95 % interval above 0, (b) no backbone, expert or learned,
 # loses more than 1 pair net against candidate 12, and (c) in every Lift / Fetch cell it succeeds at
 # most 1 of 20 fewer times than candidate 12. The confirmation runs only if the design seeds pass.
+# Outcome: it passed on both (against candidate 12: design act_single_mid +20 pp [+9, +31] (10 / 0),
+# act_single_weak +14 [+4, +24] (7 / 0), act_chunk 0 / 1, pooled +4.9 pp [+2.5, +7.2]; confirmation
+# act_single_weak +26 [+14, +38] (13 / 0), act_single_mid +20 [+9, +31] (10 / 0), pooled +6.9 pp [+4.2,
+# +9.5] (24 / 0); every expert and Lift / Fetch cell within the rule): the shipped default since
+# 2026-11-25 (docs/method.md "Candidate 15").
 DESIGN15 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_12, CANDIDATE_15)}
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)

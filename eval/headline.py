@@ -134,8 +134,11 @@ def efficacy_table() -> list[str]:
     if not recs:
         return []
     lines = []
+    lines += _confirmation_table(recs, ef, ef.CANDIDATE_15, ef.CANDIDATE_12, ef.CONFIRM14_BACKBONES, ef.FRESH_DRAWS_14,
+                                 "3n", "the shipped default's (candidate 15, `{cand}`)", "candidate 12, shipped until "
+                                 "2026-11-25")
     lines += _confirmation_table(recs, ef, ef.CANDIDATE_12, ef.CANDIDATE_10, ef.CONFIRM12_BACKBONES, ef.FRESH_DRAWS_12,
-                                 "3k", "the shipped default's (candidate 12, `{cand}`)", "candidate 10")
+                                 "3k", "candidate 12's (`{cand}`, shipped until candidate 15)", "candidate 10")
     for seeds, what in ((ef.CONFIRM7_SEEDS, "init states 35-39, a second block no decision looked at for "
                                             "candidate 6 (`default`, shipped until 2026-11-25; and candidate 7's "
                                             "confirmation block)"),
