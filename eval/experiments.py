@@ -659,13 +659,13 @@ EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3
                    "learned_phys,learned_phys_confirm,design9,learned9,learned9_confirm,confirm9,design10,learned10,"
                    "learned10_confirm,confirm10,learned11,learned11_confirm,design12,learned12,confirm12,"
                    "learned12_confirm,design13,learned13,confirm13,learned13_confirm,design14,learned14,confirm14,"
-                   "learned14_confirm,design15,learned15,confirm15,learned15_confirm")
+                   "learned14_confirm,design15,learned15,confirm15,learned15_confirm,design16,learned16,confirm16,learned16_confirm")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
                   "learned10", "learned10_confirm", "learned11", "learned11_confirm", "learned12",
                   "learned12_confirm", "learned13", "learned13_confirm", "learned14", "learned14_confirm",
-                  "learned15", "learned15_confirm"}
+                  "learned15", "learned15_confirm", "learned16", "learned16_confirm"}
 LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,act_chunk_mid2,"
            "diffusion_chunk")
 
@@ -682,16 +682,18 @@ def _lowpass_choice(n: int) -> str | None:
     return ef.lowpass_choice(records, learned, ef.LOWPASS_CANDIDATES[n][0])
 
 
-def _candidate15_passed() -> bool:
-    """Whether candidate 15 passes DESIGN15's rule on the design units on disk (False: fails, or a cell is missing)."""
+def _assist_passed(n: int) -> bool:
+    """Whether assist candidate n (eval/efficacy.py ASSIST_CANDIDATES) passes its rule on the design units
+    on disk (False: fails, or a cell is missing)."""
     import efficacy as ef
 
-    records, _, _ = _present(_efficacy_units(["design15"], EXPERTS.split(",")), RESULTS / "efficacy")
+    cand, ref, _, need_gain = ef.ASSIST_CANDIDATES[n]
+    records, _, _ = _present(_efficacy_units([f"design{n}"], EXPERTS.split(",")), RESULTS / "efficacy")
     names = LEARNED.split(",")
-    learned, _, _ = _present(_learned_units(["learned15"], names, {b: Path("policies/checkpoints") / b for b in names}),
+    learned, _, _ = _present(_learned_units([f"learned{n}"], names, {b: Path("policies/checkpoints") / b for b in names}),
                              RESULTS / "learned")
-    _, ok = ef.candidate_verdict(records, learned, ef.DESIGN_SEEDS, tuple(ef.BACKBONES), ef.LIFT_DESIGN,
-                                 ef.CANDIDATE_15, ef.CANDIDATE_12, "candidate 15")
+    _, ok = ef.candidate_verdict(records, learned, ef.DESIGN_SEEDS, tuple(ef.BACKBONES), ef.LIFT_DESIGN, cand, ref,
+                                 f"candidate {n}", need_gain)
     return ok is not None and bool(ok)  # a numpy bool where every cell is there
 
 
@@ -740,6 +742,7 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
                                   ("design13", ef.DESIGN_SEEDS, ef.DESIGN13),
                                   ("design14", ef.DESIGN_SEEDS, ef.DESIGN14),
                                   ("design15", ef.DESIGN_SEEDS, ef.DESIGN15),
+                                  ("design16", ef.DESIGN_SEEDS, ef.DESIGN16),
                                   ("confirm7", ef.CONFIRM7_SEEDS, ef.CONFIRM7)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
@@ -755,16 +758,18 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
         if f"confirm{n}" in stages:  # 35-39 with fresh failure draws (13: seed + 3000, 14: seed + 4000)
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, fresh[b]) for name, cfg in _lowpass_confirm_configs(n).items()
                       for b in fresh for t in range(10) for s in ef.CONFIRM9_SEEDS]
-    if "confirm15" in stages:  # init states 35-39, candidate 14's fresh failure draws seed + 4000
-        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM14_BACKBONES[b]) for name, cfg in ef.DESIGN15.items()
-                  for b in ef.CONFIRM14_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
+    for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items():
+        if f"confirm{n}" in stages:  # init states 35-39, candidate 14's fresh failure draws seed + 4000
+            units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM14_BACKBONES[b]) for name, cfg in configs.items()
+                      for b in ef.CONFIRM14_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
     lift_stages = {"lift": ((ef.LIFT_DESIGN, ef.LIFT_CONFIRM), {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}),
                    "design7": ((ef.LIFT_DESIGN,), ef.DESIGN7), "confirm7": ((ef.LIFT_CONFIRM,), ef.CONFIRM7),
                    "design9": ((ef.LIFT_DESIGN,), ef.DESIGN9), "design10": ((ef.LIFT_DESIGN,), ef.DESIGN10),
                    "confirm10": ((ef.LIFT_CONFIRM,), ef.DESIGN10), "design12": ((ef.LIFT_DESIGN,), ef.DESIGN12),
                    "confirm12": ((ef.LIFT_CONFIRM,), ef.DESIGN12), "design13": ((ef.LIFT_DESIGN,), ef.DESIGN13),
-                   "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14), "design15": ((ef.LIFT_DESIGN,), ef.DESIGN15),
-                   "confirm15": ((ef.LIFT_CONFIRM,), ef.DESIGN15)}
+                   "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14),
+                   **{f"{stage}{n}": ((first,), configs) for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items()
+                      for stage, first in (("design", ef.LIFT_DESIGN), ("confirm", ef.LIFT_CONFIRM))}}
     for n in ef.LOWPASS_CANDIDATES:
         if f"confirm{n}" in stages:
             lift_stages[f"confirm{n}"] = ((ef.LIFT_CONFIRM,), _lowpass_confirm_configs(n))
@@ -832,10 +837,11 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
             blocks.append((ef.DESIGN_SEEDS, names, design))
         if f"learned{n}_confirm" in stages:  # what the design seeds chose, on init states 10-14
             blocks.append((ef.CONFIRM11_SEEDS, names, _lowpass_confirm_configs(n)))
-    if "learned15" in stages:  # candidate 15 (and candidate 12, its reference), every learned ACT, 0-4
-        blocks.append((ef.DESIGN_SEEDS, names, ef.DESIGN15))
-    if "learned15_confirm" in stages:  # and on init states 10-14
-        blocks.append((ef.CONFIRM11_SEEDS, names, ef.DESIGN15))
+    for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items():  # the assist candidates (and their references)
+        if f"learned{n}" in stages:  # every learned ACT, 0-4
+            blocks.append((ef.DESIGN_SEEDS, names, configs))
+        if f"learned{n}_confirm" in stages:  # and on init states 10-14
+            blocks.append((ef.CONFIRM11_SEEDS, names, configs))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
@@ -869,9 +875,10 @@ def efficacy(args) -> None:
         if {f"confirm{n}", f"learned{n}_confirm"} & set(stages) and _lowpass_choice(n) is None:
             raise SystemExit(f"experiments: candidate {n} did not meet its rule on the design seeds (or a design{n} / "
                              f"learned{n} cell is missing): its confirmation is not run (eval/efficacy.py DESIGN{n})")
-    if {"confirm15", "learned15_confirm"} & set(stages) and not _candidate15_passed():
-        raise SystemExit("experiments: candidate 15 did not pass its rule on the design seeds (or a design15 / learned15 "
-                         "cell is missing): its confirmation is not run (eval/efficacy.py DESIGN15)")
+    for n in ef.ASSIST_CANDIDATES:
+        if {f"confirm{n}", f"learned{n}_confirm"} & set(stages) and not _assist_passed(n):
+            raise SystemExit(f"experiments: candidate {n} did not pass its rule on the design seeds (or a design{n} / "
+                             f"learned{n} cell is missing): its confirmation is not run (eval/efficacy.py DESIGN{n})")
     _, secs = run_units(_efficacy_units(stages, experts), out, args.workers, args.backend)
     learned_secs = 0.0
     names = args.learned.split(",")

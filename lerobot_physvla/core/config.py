@@ -190,6 +190,10 @@ class PhysVLAConfig:
             until the object is lifted out of the grasp phase (or the hand has risen 8 cm without
             it); 0 = off (corrections/lift_assist.py: the traced failure). Delta layouts only; it
             acts with the grasp phase's authority (phase_caps), so it needs that above 0.
+        lift_assist_at_rest: with lift_assist_u: lift only an object that lies at its resting height or
+            above it (no more than 1 cm below): one carried below where it rested (picked from a
+            shelf, carried down to a lower target) is in the grasp phase by eq. 3 but is being
+            carried, and a pause there is the policy's.
         phase_ref: what d_tgt_xy of eq. (3) measures from once the object is lifted: eef (paper)
             | object (the held object's centre; a rim grasp holds it centimetres off the hand).
         lowpass: off | adaptive: a low-pass on the executed position channels whose strength
@@ -246,6 +250,7 @@ class PhysVLAConfig:
     assist_steps: int = 10
     assist_still: str = "action"
     lift_assist_u: float = 0.0
+    lift_assist_at_rest: bool = False
     phase_ref: str = "eef"
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"

@@ -389,3 +389,17 @@ def test_branch_a_runs_the_lift_assist_in_the_grasp_phase_only_and_forgets_a_hol
     for _ in range(5):
         branch_a_row(hold, out, GRASP, idx, geo, off, mem, True)
     np.testing.assert_array_equal(out, hold)
+
+
+def test_lift_assist_at_rest_leaves_an_object_carried_below_where_it_rested():
+    """Candidate 16's traced case (act_chunk, task 9 / 2): the bowl held 4.7 mm, carried 20 cm below its
+    rest (eq. 3: grasp), the hand paused: lifted without lift_assist_at_rest, left alone with it; a hold
+    at rest is lifted either way."""
+    from lerobot_physvla.core.corrections.base import LIFT
+    from lerobot_physvla.core.corrections.lift_assist import lift_assist
+
+    for at_rest, below, lifted in ((False, -0.20, True), (True, -0.20, False), (True, 0.0, True), (True, -0.005, True)):
+        idx, geo, p, mem, hold = _rim_hold(lift_assist_at_rest=at_rest)
+        geo[LIFT] = below
+        zs = [run(lift_assist, hold, idx, geo, p, mem)[2] for _ in range(3)]
+        assert zs[-1] == (0.5 if lifted else -0.02), (at_rest, below)

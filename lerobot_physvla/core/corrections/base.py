@@ -34,8 +34,8 @@ N_GEO = 13
 # p
 (BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M, LIFT_BIAS_U, ALPHA_TRANSPORT, D_THRESH_M, METRES_PER_UNIT,
  GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL, PLACE_RULE, REDIRECT_GAIN, PHASE_REF_OBJECT, REDIRECT_TOL_M,
- HOLD_STEPS, RELEASE_CARRY, ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND, LIFT_ASSIST_U) = range(22)
-N_PARAMS = 22
+ HOLD_STEPS, RELEASE_CARRY, ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND, LIFT_ASSIST_U, LIFT_AT_REST) = range(23)
+N_PARAMS = 23
 # mem
 EMA = 0  # 3 entries: x, y, z, action units
 ACTIVE = 3  # 1.0 once the EMA holds a value (transport: the previous step was in transport)
@@ -76,4 +76,5 @@ def params(cfg: PhysVLAConfig, layout: ActionLayout) -> np.ndarray:
     p[ASSIST_STEPS] = cfg.assist_steps
     p[ASSIST_STILL_HAND] = cfg.assist_still == "hand"
     p[LIFT_ASSIST_U] = cfg.lift_assist_u
+    p[LIFT_AT_REST] = cfg.lift_assist_at_rest
     return p

@@ -3,6 +3,7 @@ paper; lift_assist_u > 0).
 
     holding:  gripper commanded closed, fingers stopped >= FINGERS_M apart     (something between them)
     still:    |p_eef - p_eef(hold began)| <= STILL_M and |fingers - fingers(hold began)| <= FINGER_STILL_M
+    at rest:  p_obj_z - z_rest >= -REST_M                (lift_assist_at_rest only: not carried below its rest)
     after `assist_steps` control steps in a row holding and still (in the grasp phase, so not lifted):
         a_z <- max(a_raw_z, lift_assist_u)                                      (action units)
     until the phase leaves grasp (the object is lifted past h_lift), the policy commands open, or
@@ -16,17 +17,24 @@ a millimetre or two, commanding z ~ -0.02 action units, until the episode ends; 
 showed. Of act_single_mid's 19 failures on the tasks its teacher solves, 12 end so (T2, T3, T7); of
 act_single_weak's 24, 11 (T0, T1, T8). A policy that lifts by itself never meets the condition for
 assist_steps steps; fingers closed on nothing (~1 mm) are not a hold.
+
+lift_assist_at_rest (candidate 16): traced on candidate 15's one lost design-block pair (act_chunk,
+task 9 / init state 2): the ACT carries the bowl from where it rests down to a plate 20 cm lower,
+so eq. 3 (lift below h_lift) calls the carry grasp; the hand paused holding it 20 cm below the bowl's
+rest, and the assist raised it for 22 steps: candidate 12's run of that episode succeeded at step
+272, candidate 15's had not by the horizon (280).
 """
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import (ASSIST_STEPS, EEF, FINGERS, GRIPPER, GRIPPER_OPEN, LIFT_ANCHOR,
-                                                   LIFT_ASSIST_U, LIFT_STALL, Z)
+from lerobot_physvla.core.corrections.base import (ASSIST_STEPS, EEF, FINGERS, GRIPPER, GRIPPER_OPEN, LIFT,
+                                                   LIFT_ANCHOR, LIFT_ASSIST_U, LIFT_AT_REST, LIFT_STALL, Z)
 from lerobot_physvla.core.corrections.release_assist import STILL_M
 
 FINGERS_M = 0.0025  # fingers stopped at least this far apart: they hold something, metres
 FINGER_STILL_M = 0.001  # and have stopped closing: within this of their opening where the hold began, metres
 RISE_M = 0.08  # the hand rose this far above where the hold began and the object stayed: stop, metres
+REST_M = 0.01  # lift_assist_at_rest: the object no more than this below its resting height, metres
 
 
 @njit(cache=True, error_model="numpy")
@@ -49,7 +57,7 @@ def lift_assist(a_raw, a_phys, idx, geo, p, mem, commit):
         elif commit:
             mem[LIFT_STALL] = -1.0
         return
-    held = geo[FINGERS] >= FINGERS_M
+    held = geo[FINGERS] >= FINGERS_M and (p[LIFT_AT_REST] < 0.5 or geo[LIFT] >= -REST_M)
     if held and n > 0.0:  # its first step is still by definition
         moved = 0.0
         for k in range(3):
