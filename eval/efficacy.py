@@ -289,7 +289,8 @@ LIFT_CONFIGS = ("baseline", CANDIDATE_1, DEFAULT_V1, DEFAULT_V2, CANDIDATE_4, CA
 CANDIDATE_7_VARIANTS = (CANDIDATE_7, CANDIDATE_7 + ", alpha_max=0.8", CANDIDATE_7 + ", speed_hi=1",
                         CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1", CANDIDATE_8)
 LIFT_REPORTED = (*LIFT_CONFIGS, *CANDIDATE_7_VARIANTS, CANDIDATE_9, CANDIDATE_10, CANDIDATE_12,
-                 CANDIDATE_13, CANDIDATE_13B, CANDIDATE_14, CANDIDATE_15, CANDIDATE_16)  # rows of the Lift / Fetch sections
+                 CANDIDATE_13, CANDIDATE_13B, CANDIDATE_14, CANDIDATE_15,
+                 CANDIDATE_16)  # rows of the Lift / Fetch sections
 # candidate 7's variants on the design seeds (LIBERO 0-4 and Lift / Fetch 7-26: stage design7)
 DESIGN7 = {name: COMPARED[name] for name in ("baseline", *CANDIDATE_7_VARIANTS)}
 # Chosen on the design seeds: candidate 7 (alpha_max 0.6, no speed fading): the jitter expert's jerk
@@ -451,7 +452,8 @@ DESIGN16 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_15, CANDIDAT
 # the assist candidates under DESIGN10's rule (or, where need_gain is False, DESIGN16's): n -> (the
 # candidate, its reference, its configurations, need_gain: a pooled interval above 0 (True) or no net
 # loss (False))
-ASSIST_CANDIDATES = {15: (CANDIDATE_15, CANDIDATE_12, DESIGN15, True), 16: (CANDIDATE_16, CANDIDATE_15, DESIGN16, False)}
+ASSIST_CANDIDATES = {15: (CANDIDATE_15, CANDIDATE_12, DESIGN15, True),
+                     16: (CANDIDATE_16, CANDIDATE_15, DESIGN16, False)}
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 # pairs in a complete LIBERO cell (10 tasks x 5 init states): the block sections show complete cells

@@ -399,11 +399,13 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # docs/method.md); and the lift assist: a policy that holds the object closed and still in the grasp
     # phase without lifting it is lifted (candidate 15, shipped 2026-11-25: weaker single-step ACTs close
     # on a bowl's rim and then hold it there to the end), with the grasp phase's authority 1 and the
-    # paper's grasp guidance off (beta 0: the lift is the grasp phase's only change)
+    # paper's grasp guidance off (beta 0: the lift is the grasp phase's only change), an object carried
+    # below where it rested left alone (candidate 16, shipped 2026-11-25: a pause while carrying a bowl
+    # down from its rest is the policy's)
     "default": PhysVLAConfig(
         mode="phys", phase_caps=(0.0, 1.0, 0.0, 1.0), beta=0.0, gripper_rule="veto", veto_height_m=0.06,
         veto_reach_m=0.10, veto_reopen=False, place_rule="release_veto", redirect_tol_m=0.02, release_carry=True,
-        phase_ref="object", release_assist_m=0.04, assist_still="hand", lift_assist_u=0.5,
+        phase_ref="object", release_assist_m=0.04, assist_still="hand", lift_assist_u=0.5, lift_assist_at_rest=True,
     ),
 }
 # on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the
@@ -412,7 +414,8 @@ PRESETS: dict[str, PhysVLAConfig] = {
 # speed and height is measured. The lift assist (candidate 15) is off there too: it was measured on
 # LIBERO's delta-pose arm only, and it would move the arm with the grasp phase's authority.
 PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), place_rule="decelerate",
-                                            release_assist_m=0.0, lift_assist_u=0.0, beta=0.5)
+                                            release_assist_m=0.0, lift_assist_u=0.0, lift_assist_at_rest=False,
+                                            beta=0.5)
 DEFAULT_PRESET = "default"
 ARM_PRESET = "arm"
 
