@@ -134,8 +134,9 @@ def efficacy_table() -> list[str]:
     if not recs:
         return []
     lines = []
-    lines += _confirmation_table(recs, ef, ef.CANDIDATE_15, ef.CANDIDATE_12, ef.CONFIRM14_BACKBONES, ef.FRESH_DRAWS_14,
-                                 "3n", "the shipped default's (candidate 15, `{cand}`)", "candidate 12, shipped until "
+    lines += _confirmation_table(recs, ef, ef.CANDIDATE_16, ef.CANDIDATE_12, ef.CONFIRM14_BACKBONES, ef.FRESH_DRAWS_14,
+                                 "3n, 3o", "the shipped default's (candidate 16, `{cand}`: candidate 15 whose lift "
+                                 "assist leaves an object carried below its rest)", "candidate 12, shipped until "
                                  "2026-11-25")
     lines += _confirmation_table(recs, ef, ef.CANDIDATE_12, ef.CANDIDATE_10, ef.CONFIRM12_BACKBONES, ef.FRESH_DRAWS_12,
                                  "3k", "candidate 12's (`{cand}`, shipped until candidate 15)", "candidate 10")
