@@ -436,8 +436,8 @@ LOWPASS_CANDIDATES = {13: (CANDIDATE_13_VARIANTS, CONFIRM13_BACKBONES), 14: ((CA
 # Outcome: it passed on both (against candidate 12: design act_single_mid +20 pp [+9, +31] (10 / 0),
 # act_single_weak +14 [+4, +24] (7 / 0), act_chunk 0 / 1, pooled +4.9 pp [+2.5, +7.2]; confirmation
 # act_single_weak +26 [+14, +38] (13 / 0), act_single_mid +20 [+9, +31] (10 / 0), pooled +6.9 pp [+4.2,
-# +9.5] (24 / 0); every expert and Lift / Fetch cell within the rule): the shipped default since
-# 2026-11-25 (docs/method.md "Candidate 15").
+# +9.5] (24 / 0); every expert and Lift / Fetch cell within the rule): shipped on 2026-11-25, narrowed
+# the same day by candidate 16 (docs/method.md "Candidate 15").
 DESIGN15 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_12, CANDIDATE_15)}
 # Candidate 16 against candidate 15 (the shipped default, its reference) and baseline on the same blocks
 # as candidate 15 (design16, learned16; confirm16: the failure experts on 35-39 with candidate 14's
@@ -448,6 +448,8 @@ DESIGN15 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_12, CANDIDAT
 # many pairs as it loses against candidate 15, (b) no backbone, expert or learned, loses more than 1
 # pair net against candidate 15, and (c) every Lift / Fetch cell succeeds at most 1 of 20 fewer times
 # than candidate 15. The confirmation runs only if the design seeds pass.
+# Outcome: it passed on both (design: act_chunk 1 / 0, the jitter expert 0 / 1, every other pair the same;
+# confirmation: every pair the same): the shipped default since 2026-11-25 (docs/method.md "Candidate 16").
 DESIGN16 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_15, CANDIDATE_16)}
 # the assist candidates under DESIGN10's rule (or, where need_gain is False, DESIGN16's): n -> (the
 # candidate, its reference, its configurations, need_gain: a pooled interval above 0 (True) or no net
@@ -910,23 +912,22 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
     lines += _lowpass_sections(records, learned, CANDIDATE_14, FRESH_DRAWS_14, CONFIRM14_BACKBONES, "3m",
                                f"Candidate 14 (`{CANDIDATE_14}`: candidate 13a in approach, grasp and place only, "
                                "alpha_max 0.8)", "DESIGN14")
-    lines += _candidate_sections(
-        records, learned, CANDIDATE_15, CANDIDATE_12, "candidate 15", CONFIRM14_BACKBONES, CONFIRM11_SEEDS,
-        f"confirmation (the failure experts on init states 35-39 with candidate 14's fresh draws, seed + "
-        f"{FRESH_DRAWS_14}; the learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)",
-        "3n. Candidate 15 (candidate 12 + the lift assist: a closed, still, unlifted hold is lifted, "
-        "`lift_assist_u=0.5`)",
-        f"DESIGN15: pooled over the learned ACTs an interval above 0 against candidate 12, `{CANDIDATE_12}` here; no "
-        "backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it")
-    lines += _candidate_sections(
-        records, learned, CANDIDATE_16, CANDIDATE_15, "candidate 16", CONFIRM14_BACKBONES, CONFIRM11_SEEDS,
-        f"confirmation (the failure experts on init states 35-39 with candidate 14's fresh draws, seed + "
-        f"{FRESH_DRAWS_14}; the learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)",
-        "3o. Candidate 16 (candidate 15 whose lift assist lifts only an object at its resting height, "
-        "`lift_assist_at_rest`)",
-        f"DESIGN16: pooled over the learned ACTs at least as many pairs won as lost against candidate 15, "
-        f"`{CANDIDATE_15}` here; no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it",
-        need_gain=False)
+    assist_sections = {  # the assist candidates' section headings and rules
+        15: ("3n. Candidate 15 (candidate 12 + the lift assist: a closed, still, unlifted hold is lifted, "
+             "`lift_assist_u=0.5`)",
+             f"DESIGN15: pooled over the learned ACTs an interval above 0 against candidate 12, `{CANDIDATE_12}` here; "
+             "no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it"),
+        16: ("3o. Candidate 16 (candidate 15 whose lift assist lifts only an object at its resting height, "
+             "`lift_assist_at_rest`)",
+             f"DESIGN16: pooled over the learned ACTs at least as many pairs won as lost against candidate 15, "
+             f"`{CANDIDATE_15}` here; no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 "
+             "of it")}
+    for n, (cand, ref, _, need_gain) in ASSIST_CANDIDATES.items():
+        lines += _candidate_sections(
+            records, learned, cand, ref, f"candidate {n}", CONFIRM14_BACKBONES, CONFIRM11_SEEDS,
+            f"confirmation (the failure experts on init states 35-39 with candidate 14's fresh draws, seed + "
+            f"{FRESH_DRAWS_14}; the learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)",
+            *assist_sections[n], need_gain)
     lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
     if lift:
         lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",
