@@ -659,13 +659,14 @@ EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3
                    "learned_phys,learned_phys_confirm,design9,learned9,learned9_confirm,confirm9,design10,learned10,"
                    "learned10_confirm,confirm10,learned11,learned11_confirm,design12,learned12,confirm12,"
                    "learned12_confirm,design13,learned13,confirm13,learned13_confirm,design14,learned14,confirm14,"
-                   "learned14_confirm,design15,learned15,confirm15,learned15_confirm,design16,learned16,confirm16,learned16_confirm")
+                   "learned14_confirm,design15,learned15,confirm15,learned15_confirm,design16,learned16,confirm16,learned16_confirm,"
+                   "design17,learned17,confirm17,learned17_confirm")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
                   "learned10", "learned10_confirm", "learned11", "learned11_confirm", "learned12",
                   "learned12_confirm", "learned13", "learned13_confirm", "learned14", "learned14_confirm",
-                  "learned15", "learned15_confirm", "learned16", "learned16_confirm"}
+                  "learned15", "learned15_confirm", "learned16", "learned16_confirm", "learned17", "learned17_confirm"}
 LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,act_chunk_mid2,"
            "diffusion_chunk")
 

@@ -1,6 +1,7 @@
 """Branch A over B envs: validity, geometry, phase (eq. 3) and the phase's correction.
 
-    approach   corrections.approach_veto
+    approach   corrections.approach_veto, or corrections.rim_guide (rim_guide_m > 0; it leaves the
+               gripper to the policy and the gripper rule)
     grasp      corrections.grasp_guidance, then corrections.lift_assist (lift_assist_u > 0)
     transport  corrections.transport_smoothing
     place      corrections.place_deceleration        (eq. 5), or corrections.place_redirect
@@ -29,7 +30,7 @@ from numba import njit
 from lerobot_physvla.core.corrections.approach_veto import approach_veto
 from lerobot_physvla.core.corrections.base import (
     ACTIVE, ASSIST_M, CARRIED, CARRY_REACH_M, D_OBJ_XY, D_TGT_XY, EEF, FINGERS, HIGH, HOLD, LIFT, LIFT_ASSIST_U,
-    LIFT_STALL, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_RULE, RELEASE_CARRY, STALL, TGT,
+    LIFT_STALL, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_RULE, RELEASE_CARRY, RIM_GUIDE_M, RIM_ON, STALL, TGT,
 )
 from lerobot_physvla.core.corrections.grasp_guidance import grasp_guidance
 from lerobot_physvla.core.corrections.lift_assist import lift_assist
@@ -37,6 +38,7 @@ from lerobot_physvla.core.corrections.place_deceleration import place_decelerati
 from lerobot_physvla.core.corrections.place_redirect import place_redirect
 from lerobot_physvla.core.corrections.release_assist import release_assist
 from lerobot_physvla.core.corrections.release_veto import release_veto
+from lerobot_physvla.core.corrections.rim_guide import rim_guide, rim_track
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
 from lerobot_physvla.core.corrections.transport_smoothing import transport_smoothing
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT, phase_of
@@ -65,7 +67,9 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
     """Branch A for one env: a_phys (A,) from a_raw by the phase's correction, clipped to bounds."""
     for k in range(a_raw.shape[0]):
         a_phys[k] = a_raw[k]
-    if phase == APPROACH:
+    if phase == APPROACH and p[RIM_GUIDE_M] > 0.0:
+        rim_guide(a_raw, a_phys, idx, geo, p, mem, commit)
+    elif phase == APPROACH:
         approach_veto(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == GRASP:
         grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit)
@@ -88,6 +92,10 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
             mem[STALL] = 0.0
         if phase != GRASP:
             mem[LIFT_STALL] = 0.0
+        if phase != APPROACH:
+            mem[RIM_ON] = 0.0
+        if p[RIM_GUIDE_M] > 0.0:
+            rim_track(geo, mem)
     for k in range(a_phys.shape[0]):
         a_phys[k] = min(max(a_phys[k], p[LOW]), p[HIGH])
 

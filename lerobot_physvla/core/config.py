@@ -194,6 +194,14 @@ class PhysVLAConfig:
             above it (no more than 1 cm below): one carried below where it rested (picked from a
             shelf, carried down to a lower target) is in the grasp phase by eq. 3 but is being
             carried, and a pause there is the policy's.
+        rim_guide_m: approach phase: a hand that has settled low beside the object (within 0.14 m of
+            its origin horizontally, below 0.15 m above it, moved under 1 cm in 5 control steps),
+            outside delta_grasp, with the policy not commanding closed, is pulled horizontally to
+            this distance from the object's origin along the line it stands on, until it enters
+            the grasp phase or the policy closes (corrections/rim_guide.py: the traced failure);
+            metres, 0 = off. Delta layouts only; it acts with the approach phase's authority, so it
+            needs that above 0, and the approach phase's candidate then leaves the gripper to the
+            policy and the gripper rule (the paper's approach veto is not added to it).
         phase_ref: what d_tgt_xy of eq. (3) measures from once the object is lifted: eef (paper)
             | object (the held object's centre; a rim grasp holds it centimetres off the hand).
         lowpass: off | adaptive: a low-pass on the executed position channels whose strength
@@ -251,6 +259,7 @@ class PhysVLAConfig:
     assist_still: str = "action"
     lift_assist_u: float = 0.0
     lift_assist_at_rest: bool = False
+    rim_guide_m: float = 0.0
     phase_ref: str = "eef"
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
@@ -329,6 +338,15 @@ class PhysVLAConfig:
             raise ValueError("physvla: lift_assist_u acts with the grasp phase's authority, which is 0 here: set "
                              "phase_caps with a grasp entry above 0 (e.g. phase_caps=(0, 1, 0, 1) with beta=0: the "
                              "paper's grasp guidance then leaves the action as it is)")
+        if not 0.0 <= self.rim_guide_m < self.delta_grasp_m:
+            raise ValueError(f"physvla: rim_guide_m must lie in [0, delta_grasp_m = {self.delta_grasp_m}) m (the "
+                             f"approach phase begins at delta_grasp_m), got {self.rim_guide_m}")
+        if self.rim_guide_m > 0.0 and self.action_layout.absolute:
+            raise ValueError("physvla: rim_guide_m commands a delta layout's x, y; this layout's positions are "
+                             "absolute targets: leave rim_guide_m at 0")
+        if self.rim_guide_m > 0.0 and self.caps[0] == 0.0:
+            raise ValueError("physvla: rim_guide_m acts with the approach phase's authority, which is 0 here: set "
+                             "phase_caps with an approach entry above 0 (e.g. phase_caps=(1, 1, 0, 1))")
 
     @property
     def caps(self) -> tuple[float, float, float, float]:

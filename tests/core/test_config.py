@@ -57,7 +57,9 @@ def test_presets_follow_the_paper_and_the_default_is_built_from_the_options():
                                  {"veto_reach_m": -0.1}, {"chunk_phase_caps": (0, 0.05)},
                                  {"chunk_phase_caps": (0, -0.05, 0, 1)}, {"lowpass_rough": "mean"},
                                  {"lowpass_lag": "lead"}, {"lift_assist_u": -0.5},
-                                 {"lift_assist_u": 2.0, "phase_caps": (0, 1, 0, 1)}])
+                                 {"lift_assist_u": 2.0, "phase_caps": (0, 1, 0, 1)},
+                                 {"rim_guide_m": -0.01, "phase_caps": (1, 1, 0, 1)},
+                                 {"rim_guide_m": 0.06, "phase_caps": (1, 1, 0, 1)}])
 def test_bad_options_are_rejected(bad):
     with pytest.raises(ValueError):
         PhysVLAConfig(**bad)
@@ -74,6 +76,21 @@ def test_the_lift_assist_is_refused_where_it_could_not_act_and_says_what_to_set(
     with pytest.raises(ValueError, match="absolute"):
         PhysVLAConfig(lift_assist_u=0.5, phase_caps=(0.0, 1.0, 0.0, 1.0), layout=absolute)
     assert PhysVLAConfig(lift_assist_u=0.5, phase_caps=(0.0, 1.0, 0.0, 1.0), beta=0.0).lift_assist_u == 0.5
+
+
+def test_the_rim_guide_is_refused_where_it_could_not_act_and_says_what_to_set():
+    """It commands a delta layout's x, y with the approach phase's authority, toward a point inside
+    delta_grasp (where the approach phase ends)."""
+    from lerobot_physvla.core.config import ActionLayout
+
+    with pytest.raises(ValueError, match="phase_caps"):
+        PhysVLAConfig(rim_guide_m=0.047, phase_caps=(0.0, 1.0, 0.0, 1.0))
+    absolute = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, absolute=True)
+    with pytest.raises(ValueError, match="absolute"):
+        PhysVLAConfig(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0), layout=absolute)
+    with pytest.raises(ValueError, match="delta_grasp_m"):
+        PhysVLAConfig(rim_guide_m=0.06, phase_caps=(1.0, 1.0, 0.0, 1.0))
+    assert PhysVLAConfig(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0)).rim_guide_m == 0.047
 
 
 def test_chunk_phase_caps_apply_only_to_a_policy_that_executes_chunks():

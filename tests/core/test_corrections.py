@@ -403,3 +403,81 @@ def test_lift_assist_at_rest_leaves_an_object_carried_below_where_it_rested():
         geo[LIFT] = below
         zs = [run(lift_assist, hold, idx, geo, p, mem)[2] for _ in range(3)]
         assert zs[-1] == (0.5 if lifted else -0.02), (at_rest, below)
+
+
+def _beside(eef=(0.031, -0.085, 0.968), **cfg):
+    """The traced jitter-expert miss: the hand hovering 9 cm from the bowl's origin (its aim error set the
+    rim grasp outside the wall), 7 cm above it, the policy open and commanding a small noisy move."""
+    idx, geo, p, mem = ctx(eef=eef, obj=(0.0, 0.0, 0.898), phase_caps=(1.0, 1.0, 0.0, 1.0), beta=0.0,
+                           **{"rim_guide_m": 0.047, **cfg})
+    return idx, geo, p, mem, np.array([0.1, -0.05, -0.3, 0.0, 0.0, 0.0, -1.0])
+
+
+def _track(geo, mem, steps):
+    from lerobot_physvla.core.corrections.rim_guide import rim_track
+
+    for _ in range(steps):
+        rim_track(geo, mem)
+
+
+def test_rim_guide_pulls_a_settled_hand_onto_the_rim_along_its_own_line_only_in_x_y():
+    from lerobot_physvla.core.corrections.base import RIM_ON, RIM_SETTLE_STEPS
+    from lerobot_physvla.core.corrections.rim_guide import rim_guide
+
+    idx, geo, p, mem, a = _beside()
+    _track(geo, mem, RIM_SETTLE_STEPS - 1)
+    np.testing.assert_array_equal(run(rim_guide, a, idx, geo, p, mem), a)  # too few steps seen to call it settled
+    _track(geo, mem, 1)
+    out = run(rim_guide, a, idx, geo, p, mem)
+    rho = np.hypot(0.031, -0.085)
+    goal = np.array([0.031, -0.085]) * 0.047 / rho  # the rim point on the hand's own line from the origin
+    np.testing.assert_allclose(out[:2], np.clip((goal - [0.031, -0.085]) / 0.05, -1, 1))
+    assert out[0] < 0 < out[1]  # inward, toward the bowl
+    np.testing.assert_array_equal(out[2:], a[2:])  # z, rotation and the gripper are the policy's
+    assert mem[RIM_ON] == 1.0
+    geo[EEF:EEF + 2] = [0.02, -0.07]  # moving now (pulled): the pull goes on while the hand is beside and open
+    assert run(rim_guide, a, idx, geo, p, mem)[0] != a[0]
+
+
+@pytest.mark.parametrize("case", ["moving", "closing", "high", "far", "look_ahead"])
+def test_rim_guide_leaves_a_hand_that_passes_by_closes_or_is_out_of_the_zone(case):
+    from lerobot_physvla.core.corrections.base import RIM_ON, RIM_SETTLE_STEPS
+    from lerobot_physvla.core.corrections.rim_guide import RIM_HEIGHT_M, RIM_REACH_M, rim_guide
+
+    eef = {"high": (0.031, -0.085, 0.898 + RIM_HEIGHT_M + 0.01), "far": (0.0, -RIM_REACH_M - 0.01, 0.968)}
+    idx, geo, p, mem, a = _beside(**({"eef": eef[case]} if case in eef else {}))
+    _track(geo, mem, RIM_SETTLE_STEPS)
+    if case == "moving":  # the hand was 2 cm away 5 steps ago: on its way somewhere
+        geo[EEF] += 0.02
+    if case == "closing":
+        a[6] = 1.0
+    out = run(rim_guide, a, idx, geo, p, mem, commit=case != "look_ahead")
+    if case == "look_ahead":  # a chunk's look-ahead step: corrected, memory untouched
+        assert out[0] != a[0] and mem[RIM_ON] == 0.0
+        return
+    np.testing.assert_array_equal(out, a)
+    assert mem[RIM_ON] == 0.0
+
+
+def test_branch_a_runs_the_rim_guide_in_approach_only_leaving_the_gripper_to_the_policy():
+    from lerobot_physvla.core.branch_a import branch_a_row
+    from lerobot_physvla.core.corrections.base import RIM_AT, RIM_ON, RIM_SETTLE_STEPS
+    from lerobot_physvla.core.phase import APPROACH, GRASP
+
+    idx, geo, p, mem, a = _beside()
+    a[6] = 1.0  # closing out here: the paper's approach veto would open it; the rim guide leaves it
+    out = np.empty(7)
+    for _ in range(RIM_SETTLE_STEPS + 1):
+        branch_a_row(a, out, APPROACH, idx, geo, p, mem, True)
+    np.testing.assert_array_equal(out, a)  # closing: no pull, and the gripper is the policy's
+    assert mem[RIM_AT] == RIM_SETTLE_STEPS + 1  # the hand's track is kept every committed step
+    a[6] = -1.0
+    branch_a_row(a, out, APPROACH, idx, geo, p, mem, True)
+    assert out[0] < 0 < out[1] and mem[RIM_ON] == 1.0
+    branch_a_row(a, out, GRASP, idx, geo, p, mem, True)  # inside delta_grasp: the pull ends
+    assert mem[RIM_ON] == 0.0
+    off = params(PhysVLAConfig(phase_caps=(1.0, 1.0, 0.0, 1.0), beta=0.0), LIBERO_OSC_POSE)  # rim_guide_m 0
+    mem[:] = 0.0
+    for _ in range(RIM_SETTLE_STEPS + 2):
+        branch_a_row(a, out, APPROACH, idx, geo, off, mem, True)
+    assert out[6] == LIBERO_OSC_POSE.gripper_open and mem[RIM_AT] == 0  # the paper's veto; nothing tracked

@@ -46,14 +46,14 @@ def test_any_state_field_and_action_gives_a_finite_in_bounds_action(
     cfg = PhysVLAConfig(mode=mode, layout=layout, weighting=weighting, el_mode=el, gripper_rule=grip,
                         chunk=chunk or "all", cap=1.0 if seed % 2 else 0.05)
     if beyond:  # the options beyond the paper (those of the default preset, and per-phase authority)
-        cfg = cfg.replace(phase_caps=(0.0, 0.5, 1.0, 1.0), veto_height_m=0.06, veto_reach_m=0.10,
+        cfg = cfg.replace(phase_caps=(0.5 * (seed % 5 > 1), 0.5, 1.0, 1.0), veto_height_m=0.06, veto_reach_m=0.10,
                           place_rule=("redirect", "release_veto")[seed % 2], redirect_tol_m=0.02 * (seed % 3 > 0),
                           phase_ref="object", lowpass="adaptive", release_carry=seed % 2 == 1,
                           lowpass_space=("action", "target")[seed % 3 > 0], lowpass_rough=("ema", "median")[seed % 2],
                           lowpass_lag=("trail", "compensate")[seed % 4 > 1],
                           release_assist_m=0.04 * (seed % 2), assist_still=("action", "hand")[seed % 4 > 1],
                           lift_assist_u=0.5 * (seed % 3 != 1), assist_steps=1 + seed % 3,
-                          lift_assist_at_rest=seed % 4 == 0,
+                          lift_assist_at_rest=seed % 4 == 0, rim_guide_m=0.047 * (seed % 5 > 1),
                           chunk_phase_caps=(0.0, 0.05, 0.0, 1.0))
     b = 3
     c = Corrector(cfg, b)

@@ -1,0 +1,68 @@
+"""Approach: a pull onto the object's rim for a hand that has settled beside it, outside where a
+grasp can close on it (beyond the paper; rim_guide_m > 0).
+
+    beside:   delta_grasp <= rho < RIM_REACH_M,  p_eef_z - p_obj_z < RIM_HEIGHT_M   (approach phase)
+              rho = |p_eef - p_obj|_xy, horizontal, metres
+    settled:  |p_eef_xy - p_eef_xy(RIM_SETTLE_STEPS steps ago)| < RIM_SETTLE_M
+    open:     the policy does not command closed
+    once beside, settled and open (and then while beside and open, moving or not):
+        a_xy <- clip((p_obj_xy + rim_guide_m * (p_eef - p_obj)_xy / rho - p_eef_xy) / metres_per_unit, -1, 1)
+    z and the gripper stay the policy's; the pull ends where the hand enters the grasp phase
+    (rho < delta_grasp), leaves the zone, or the policy closes.
+
+Traced failure (design block, LIBERO init states 0-4, expert_jitter, docs/method.md "Candidate 17"):
+of the jitter expert's 9 failures there that the clean expert succeeds on (section 8b's reachable
+ones), 6 are one aim draw (init state 3: an aim error of 4.9 cm) that sets the expert's rim grasp
+8.5-9.8 cm from the bowl's origin, outside its wall (radius ~5.5-6.6 cm); it closes on nothing and
+the phase stays approach to the end. The shipped default leaves all of them: its approach veto
+lets a close through within veto_reach_m. A probe pulling such a settled hand to 4.7 cm (the
+expert's rim grasp) turned 6 of the 9 and lost 1 of the jitter expert's 50 pairs, and none of the
+clean or faulty experts' 100. The settle test keeps it off a hand that passes through the zone on
+its way somewhere: pulling every hand that crossed it cost the clean expert 2 of its 50.
+"""
+
+from numba import njit
+
+from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_OPEN, METRES_PER_UNIT, OBJ, RIM_AT,
+                                                   RIM_GUIDE_M, RIM_ON, RIM_SETTLE_STEPS, RIM_TRACK, X, Y)
+
+RIM_REACH_M = 0.14  # the zone beside the object: the hand within this of its origin horizontally, metres
+RIM_HEIGHT_M = 0.15  # and below this above it (a policy's hover over a bowl, ~0.135 m for the expert), metres
+RIM_SETTLE_M = 0.01  # settled: moved under this in RIM_SETTLE_STEPS control steps, metres
+
+
+@njit(cache=True, error_model="numpy")
+def rim_guide(a_raw, a_phys, idx, geo, p, mem, commit):
+    """x, y commanded toward the point rim_guide_m from the object's origin on the line through the
+    hand, for a hand settled beside the object, outside delta_grasp (the approach phase); z and the
+    gripper untouched. Called in the approach phase only; rim_track keeps the hand's history."""
+    dx, dy = geo[EEF] - geo[OBJ], geo[EEF + 1] - geo[OBJ + 1]
+    rho = (dx * dx + dy * dy) ** 0.5
+    g = idx[GRIPPER]
+    closing = g >= 0 and a_raw[g] * p[GRIPPER_OPEN] < 0.0
+    beside = 1e-9 < rho < RIM_REACH_M and geo[EEF + 2] - geo[OBJ + 2] < RIM_HEIGHT_M and not closing
+    on = beside and (mem[RIM_ON] > 0.5 or _settled(geo, mem))
+    if on:
+        for k, c in ((X, 0), (Y, 1)):
+            goal = geo[OBJ + c] + p[RIM_GUIDE_M] * (dx if c == 0 else dy) / rho
+            a_phys[idx[k]] = min(max((goal - geo[EEF + c]) / p[METRES_PER_UNIT], -1.0), 1.0)
+    if commit:
+        mem[RIM_ON] = 1.0 if on else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _settled(geo, mem) -> bool:
+    """The hand moved under RIM_SETTLE_M (x, y) since RIM_SETTLE_STEPS control steps ago."""
+    if mem[RIM_AT] < RIM_SETTLE_STEPS:
+        return False
+    k = RIM_TRACK + 2 * (int(mem[RIM_AT]) % RIM_SETTLE_STEPS)
+    ex, ey = geo[EEF] - mem[k], geo[EEF + 1] - mem[k + 1]
+    return ex * ex + ey * ey < RIM_SETTLE_M * RIM_SETTLE_M
+
+
+@njit(cache=True, error_model="numpy")
+def rim_track(geo, mem):
+    """Record the hand's x, y (every committed step, every phase) for the settle test."""
+    k = RIM_TRACK + 2 * (int(mem[RIM_AT]) % RIM_SETTLE_STEPS)
+    mem[k], mem[k + 1] = geo[EEF], geo[EEF + 1]
+    mem[RIM_AT] += 1.0
