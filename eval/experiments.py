@@ -742,8 +742,8 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
                                   ("design12", ef.DESIGN_SEEDS, ef.DESIGN12),
                                   ("design13", ef.DESIGN_SEEDS, ef.DESIGN13),
                                   ("design14", ef.DESIGN_SEEDS, ef.DESIGN14),
-                                  ("design15", ef.DESIGN_SEEDS, ef.DESIGN15),
-                                  ("design16", ef.DESIGN_SEEDS, ef.DESIGN16),
+                                  *((f"design{n}", ef.DESIGN_SEEDS, configs)  # the assist candidates
+                                    for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items()),
                                   ("confirm7", ef.CONFIRM7_SEEDS, ef.CONFIRM7)):
         if stage in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.BACKBONES[b]) for name, cfg in configs.items()
