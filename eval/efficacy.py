@@ -481,6 +481,30 @@ DESIGN16 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_15, CANDIDAT
 # Fetch cell succeeds at most 1 of 20 fewer times than candidate 16. The confirmation runs only if the
 # design seeds pass.
 DESIGN17 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_16, CANDIDATE_17)}
+# Outcome: it passed on the design seeds (the jitter expert 6 / 1; learned pooled +2.9 pp [+0.8, +4.9],
+# 12 / 2) and failed (a) on the confirmation: the jitter expert 0 / 0 (its design-block gain was one
+# extreme aim draw, init state 3's 4.9 cm), the clean expert 0 / 1 (task 9), faulty and place-bias
+# the same pairs, Lift / Fetch the same; the learned ACTs pooled +4.0 pp [+1.9, +6.1] (14 / 0). Not
+# shipped under this rule.
+# Candidate 18: candidate 17's configuration (its units: CANDIDATE_17's) under DESIGN15's rule, the one
+# for a correction of the learned ACTs, against candidate 16. It was written after candidate 17's
+# confirmation was seen (its learned gain there, its jitter gain gone), so that block and the design
+# block are no test of it: it is tested on blocks no decision has looked at. confirm18: the failure
+# experts on init states 35-39 with fresh draws seed + 5000 (and the clean expert's episodes there),
+# Lift / Fetch seeds 120-139; learned18_confirm: the learned ACTs on init states 15-19 (where their
+# demonstrations were recorded, like 10-14; never evaluated before; 40-49 stay untouched), candidate
+# 16 and 17 only. Rule, written before any of its units ran: it replaces the shipped default if on
+# those blocks (a) pooled over the learned ACTs its paired difference against candidate 16 has a 95 %
+# interval above 0, (b) no backbone, expert or learned, loses more than 1 pair net against candidate
+# 16, and (c) every Lift / Fetch cell succeeds at most 1 of 20 fewer times than candidate 16.
+DESIGN18 = DESIGN17
+LEARNED18 = {name: COMPARED[name] for name in (CANDIDATE_16, CANDIDATE_17)}
+FRESH_DRAWS_18 = 5000
+CONFIRM18_BACKBONES = {"expert_clean": BACKBONES["expert_clean"],
+                       **{f"{b}+{FRESH_DRAWS_18}": {**BACKBONES[b], "draw_offset": FRESH_DRAWS_18}
+                          for b in ("expert_jitter", "expert_faulty", "expert_place_bias")}}
+CONFIRM18_SEEDS = range(15, 20)  # the learned ACTs
+LIFT_CONFIRM18 = 120
 # the assist candidates under DESIGN10's rule (or DESIGN16's, or DESIGN17's): n -> (the candidate, its
 # reference, its configurations, need_gain: a pooled interval above 0 over the learned ACTs (True), no
 # net loss there (False), or no net loss there and more pairs won than lost on this expert (its name))

@@ -660,13 +660,14 @@ EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3
                    "learned10_confirm,confirm10,learned11,learned11_confirm,design12,learned12,confirm12,"
                    "learned12_confirm,design13,learned13,confirm13,learned13_confirm,design14,learned14,confirm14,"
                    "learned14_confirm,design15,learned15,confirm15,learned15_confirm,design16,learned16,confirm16,learned16_confirm,"
-                   "design17,learned17,confirm17,learned17_confirm")
+                   "design17,learned17,confirm17,learned17_confirm,confirm18,learned18_confirm")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
                   "learned10", "learned10_confirm", "learned11", "learned11_confirm", "learned12",
                   "learned12_confirm", "learned13", "learned13_confirm", "learned14", "learned14_confirm",
-                  "learned15", "learned15_confirm", "learned16", "learned16_confirm", "learned17", "learned17_confirm"}
+                  "learned15", "learned15_confirm", "learned16", "learned16_confirm", "learned17", "learned17_confirm",
+                  "learned18_confirm"}
 LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,act_chunk_mid2,"
            "diffusion_chunk")
 
@@ -763,12 +764,15 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
         if f"confirm{n}" in stages:  # init states 35-39, candidate 14's fresh failure draws seed + 4000
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM14_BACKBONES[b]) for name, cfg in configs.items()
                       for b in ef.CONFIRM14_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
+    if "confirm18" in stages:  # init states 35-39, fresh failure draws seed + 5000
+        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM18_BACKBONES[b]) for name, cfg in ef.DESIGN18.items()
+                  for b in ef.CONFIRM18_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
     lift_stages = {"lift": ((ef.LIFT_DESIGN, ef.LIFT_CONFIRM), {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}),
                    "design7": ((ef.LIFT_DESIGN,), ef.DESIGN7), "confirm7": ((ef.LIFT_CONFIRM,), ef.CONFIRM7),
                    "design9": ((ef.LIFT_DESIGN,), ef.DESIGN9), "design10": ((ef.LIFT_DESIGN,), ef.DESIGN10),
                    "confirm10": ((ef.LIFT_CONFIRM,), ef.DESIGN10), "design12": ((ef.LIFT_DESIGN,), ef.DESIGN12),
                    "confirm12": ((ef.LIFT_CONFIRM,), ef.DESIGN12), "design13": ((ef.LIFT_DESIGN,), ef.DESIGN13),
-                   "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14),
+                   "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14), "confirm18": ((ef.LIFT_CONFIRM18,), ef.DESIGN18),
                    **{f"{stage}{n}": ((first,), configs) for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items()
                       for stage, first in (("design", ef.LIFT_DESIGN), ("confirm", ef.LIFT_CONFIRM))}}
     for n in ef.LOWPASS_CANDIDATES:
@@ -843,6 +847,8 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
             blocks.append((ef.DESIGN_SEEDS, names, configs))
         if f"learned{n}_confirm" in stages:  # and on init states 10-14
             blocks.append((ef.CONFIRM11_SEEDS, names, configs))
+    if "learned18_confirm" in stages:  # candidate 18 (candidate 17's configuration) and 16 on init states 15-19
+        blocks.append((ef.CONFIRM18_SEEDS, names, ef.LEARNED18))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
