@@ -749,10 +749,10 @@ def _lift_successes(records, first: int, config: str) -> dict[str, int]:
     return out
 
 
-def _against(recs, cand: str, b: str, ref: str, label: str, rows: list[str]) -> dict | None:
-    """Appends the rows of `cand` on backbone b against baseline and against `ref`; returns the paired
-    result against `ref`, or None when a cell of the block is missing."""
-    for base in ("baseline", ref):
+def _against(recs, cand: str, b: str, ref: str, label: str, rows: list[str], baseline: bool = True) -> dict | None:
+    """Appends the rows of `cand` on backbone b against baseline (unless `baseline` is False) and against
+    `ref`; returns the paired result against `ref`, or None when a cell of the block is missing."""
+    for base in ("baseline", ref)[0 if baseline else 1:]:
         p = paired(recs, cand, b, base)
         if p["n"] < FULL_CELL:
             return None
@@ -775,12 +775,13 @@ def _pooled_row(pool: list[float], what: str, label: str, ref: str) -> tuple[str
 
 def candidate_verdict(records, learned, seeds, expert_names, lift_first: int, cand: str = CANDIDATE_10,
                       ref: str = CANDIDATE_6, label: str = "candidate 10",
-                      need_gain: bool | str = True) -> tuple[list[str], bool | None]:
+                      need_gain: bool | str = True, learned_baseline: bool = True) -> tuple[list[str], bool | None]:
     """A candidate against its reference (the shipped default when it ran: candidate 10 against 6,
     candidate 12 against 10) and baseline on one block: rows and the rule's verdict (DESIGN10's
     comment; need_gain False: DESIGN16's, the pooled pairs won at least those lost; need_gain an
     expert's name: DESIGN17's, that and more pairs won than lost on that expert), or None when a
-    cell of the block is missing."""
+    cell of the block is missing. learned_baseline False: the learned ACTs ran no baseline on this block
+    (their rows are against `ref` only)."""
     recs, lrecs = _block(records, seeds), _block(list(learned), seeds)
     rows, ok, pool = [], True, []
     for b in expert_names:
@@ -790,7 +791,7 @@ def candidate_verdict(records, learned, seeds, expert_names, lift_first: int, ca
         if isinstance(need_gain, str) and b.split("+")[0] == need_gain:
             ok &= p["won"] > p["lost"]
     for b in dict.fromkeys(r["backbone"] for r in lrecs if r["config"] == cand):
-        if (p := _against(lrecs, cand, b, ref, label, rows)) is None:
+        if (p := _against(lrecs, cand, b, ref, label, rows, learned_baseline)) is None:
             return rows, None
         ok &= p["won"] - p["lost"] >= -1
         pool += _differences(lrecs, cand, ref, b)
@@ -1046,7 +1047,21 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
             f"confirmation (the failure experts on init states 35-39 with candidate 14's fresh draws, seed + "
             f"{FRESH_DRAWS_14}; the learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)",
             *assist_sections[n], need_gain)
-    lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM)
+    rows, ok = candidate_verdict(  # candidate 18: candidate 17's configuration, DESIGN15's rule, fresh blocks
+        [r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
+        [r for r in learned if r["seed"] in CONFIRM18_SEEDS], range(0, 50), tuple(CONFIRM18_BACKBONES), LIFT_CONFIRM18,
+        CANDIDATE_17, CANDIDATE_16, "candidate 18", True, learned_baseline=False)
+    if rows:
+        verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
+        lines += ["", f"## 3q. Candidate 18 (candidate 17's configuration, `{CANDIDATE_17}`, under DESIGN15's rule "
+                      "against candidate 16, written after candidate 17's confirmation was seen), blocks no decision "
+                      f"looked at: the failure experts on init states 35-39 with fresh draws, seed + {FRESH_DRAWS_18}; "
+                      f"the learned ACTs on init states {CONFIRM18_SEEDS.start}-{CONFIRM18_SEEDS.stop - 1} (candidate "
+                      f"16 and 17 only: no baseline there); Lift / Fetch {LIFT_CONFIRM18}-{LIFT_CONFIRM18 + 19}: "
+                      f"{verdict} the rule written before it ran (eval/efficacy.py DESIGN18: pooled over the learned "
+                      f"ACTs an interval above 0 against candidate 16, `{CANDIDATE_16}` here; no backbone losing more "
+                      "than 1 pair net against it; Lift / Fetch within 1 of 20 of it)\n", *PAIRED_HEAD, *rows]
+    lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM) + _lift_rows(records, LIFT_CONFIRM18)
     if lift:
         lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",
                   "| sim | block | configuration | success sigma 0 | success sigma 0.40 | jerk sigma 0 | jerk sigma 0.40 | "

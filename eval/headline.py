@@ -95,19 +95,22 @@ def paired_table(name: str, title: str) -> list[str]:
 
 
 def _confirmation_table(recs, ef, cand: str, ref: str, backbones: dict, offset: int, section: str, who: str,
-                        ref_label: str) -> list[str]:
+                        ref_label: str, looked: str = "no decision about it looked at these episodes",
+                        learned_seeds: str | None = "10-14") -> list[str]:
     """A candidate against its reference and baseline on its confirmation blocks (the experts on init
-    states 35-39 with fresh failure draws seed + offset, the learned ACTs on 10-14), paired; [] until
-    every expert cell is complete."""
+    states 35-39 with fresh failure draws seed + offset, the learned ACTs on `learned_seeds`, or none),
+    paired; [] until every expert cell is complete. `looked` says what decision, if any, saw them."""
     fresh = [r for r in recs if r["backbone"] in backbones and r["seed"] in ef.CONFIRM9_SEEDS
              and r["config"] in ("baseline", ref, cand)]
     if sum(r["config"] == cand for r in fresh) < 50 * len(backbones):
         return []
-    learned = [r for f in sorted((RESULTS / "learned" / "units").glob("*__s10-14.json"))  # the efficacy stage's units
-               for r in json.loads(f.read_text())["records"] if r["config"] in ("baseline", ref, cand)]
-    lines = [f"**LIBERO-Spatial, {who.format(cand=cand)} confirmation blocks; no decision about it looked at these "
-             f"episodes: the experts on init states 35-39 with fresh failure draws (seed + {offset}), the learned ACTs on "
-             "init states 10-14 (where their demonstrations were recorded; 40-49 stay untouched) (10 tasks, n = 50 pairs "
+    learned = [] if learned_seeds is None else [  # the efficacy stage's units
+        r for f in sorted((RESULTS / "learned" / "units").glob(f"*__s{learned_seeds}.json"))
+        for r in json.loads(f.read_text())["records"] if r["config"] in ("baseline", ref, cand)]
+    acts = ("" if learned_seeds is None else f", the learned ACTs on init states {learned_seeds} (where their "
+            "demonstrations were recorded; 40-49 stay untouched)")
+    lines = [f"**LIBERO-Spatial, {who.format(cand=cand)} confirmation blocks; {looked}: the experts on init states "
+             f"35-39 with fresh failure draws (seed + {offset}){acts} (10 tasks, n = 50 pairs "
              f"per cell)** ([eval/results/efficacy](eval/results/efficacy/README.md) section {section}): success; paired "
              "difference against baseline [95 % CI]; jerk relative to baseline's\n",
              f"| backbone | baseline | {ref} ({ref_label}) | {cand} |", "|---|---|---|---|"]
