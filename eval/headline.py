@@ -21,7 +21,7 @@ from lerobot_physvla import metrics
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "eval" / "results"
 START, END = "<!-- headline:start -->", "<!-- headline:end -->"
-MODES = ("baseline", "temporal", "phys", "phys_el", "default", "default + release assist, hand still")  # the last: the shipped default since candidate 12, by its eval/efficacy.py name
+MODES = ("baseline", "temporal", "phys", "phys_el", "default")  # and the shipped default, by its eval/efficacy.py name
 
 
 def _records(name: str) -> list[dict] | None:
@@ -46,13 +46,23 @@ def _jerk(recs) -> float:
     return float(np.mean([r["mean_jerk"] for r in recs]))
 
 
+def _shipped() -> str:
+    """The shipped default's configuration name in eval/efficacy.py (the learned table's units carry it)."""
+    import sys
+
+    sys.path.insert(0, str(ROOT / "eval"))
+    import efficacy as ef
+
+    return ef.SHIPPED
+
+
 def success_table(name: str, title: str) -> list[str]:
     recs = _records(name)
     if not recs:
         return []
     g = _group(recs, "backbone", "config")
     backbones = list(dict.fromkeys(r["backbone"] for r in recs))
-    modes = [m for m in MODES if any((b, m) in g for b in backbones)]
+    modes = [m for m in (*MODES, _shipped()) if any((b, m) in g for b in backbones)]
     lines = [f"**{title}** ([eval/results/{name}](eval/results/{name}/README.md)): success [95 % Wilson CI], "
              "mean end-effector jerk (m/s^3)\n", "| backbone | " + " | ".join(modes) + " |",
              "|---|" + "---|" * len(modes)]
@@ -137,9 +147,19 @@ def efficacy_table() -> list[str]:
     if not recs:
         return []
     lines = []
+    lines += _confirmation_table(recs, ef, ef.CANDIDATE_17, ef.CANDIDATE_16, ef.CONFIRM18_BACKBONES, ef.FRESH_DRAWS_18,
+                                 "3q", "the shipped default's (candidate 17's configuration, `{cand}`: candidate 16 + "
+                                 "the rim guide, shipped as candidate 18)", "candidate 16, shipped until 2026-11-25",
+                                 looked="no decision looked at these episodes before candidate 18's rule was written",
+                                 learned_seeds=None)
+    lines += _confirmation_table(recs, ef, ef.CANDIDATE_17, ef.CANDIDATE_16, ef.CONFIRM14_BACKBONES, ef.FRESH_DRAWS_14,
+                                 "3p", "candidate 17's (`{cand}`)", "candidate 16",
+                                 looked="no decision about candidate 17's design looked at these episodes; candidate "
+                                 "18's rule, which shipped it, was written after they were seen and was tested on "
+                                 "the blocks of the table above and the learned ACTs on init states 15-19 (section 3q)")
     lines += _confirmation_table(recs, ef, ef.CANDIDATE_16, ef.CANDIDATE_12, ef.CONFIRM14_BACKBONES, ef.FRESH_DRAWS_14,
-                                 "3n, 3o", "the shipped default's (candidate 16, `{cand}`: candidate 15 whose lift "
-                                 "assist leaves an object carried below its rest)", "candidate 12, shipped until "
+                                 "3n, 3o", "candidate 16's (`{cand}`: candidate 15 whose lift assist leaves an object "
+                                 "carried below its rest, shipped until candidate 18)", "candidate 12, shipped until "
                                  "2026-11-25")
     lines += _confirmation_table(recs, ef, ef.CANDIDATE_12, ef.CANDIDATE_10, ef.CONFIRM12_BACKBONES, ef.FRESH_DRAWS_12,
                                  "3k", "candidate 12's (`{cand}`, shipped until candidate 15)", "candidate 10")

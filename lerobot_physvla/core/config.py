@@ -344,9 +344,13 @@ class PhysVLAConfig:
         if self.rim_guide_m > 0.0 and self.action_layout.absolute:
             raise ValueError("physvla: rim_guide_m commands a delta layout's x, y; this layout's positions are "
                              "absolute targets: leave rim_guide_m at 0")
-        if self.rim_guide_m > 0.0 and self.caps[0] == 0.0:
-            raise ValueError("physvla: rim_guide_m acts with the approach phase's authority, which is 0 here: set "
-                             "phase_caps with an approach entry above 0 (e.g. phase_caps=(1, 1, 0, 1))")
+        for caps, name in ((self.caps, "phase_caps"), (tuple(self.chunk_phase_caps) or (1.0,) * 4, "chunk_phase_caps")):
+            if self.rim_guide_m > 0.0 and caps[0] == 0.0:
+                raise ValueError(f"physvla: rim_guide_m acts with the approach phase's authority, which is 0 in {name}: "
+                                 f"set {name} with an approach entry above 0 (e.g. (1, 1, 0, 1)), or rim_guide_m=0")
+            if self.lift_assist_u > 0.0 and caps[1] == 0.0 and name == "chunk_phase_caps":
+                raise ValueError("physvla: lift_assist_u acts with the grasp phase's authority, which is 0 in "
+                                 "chunk_phase_caps: set its grasp entry above 0, or lift_assist_u=0")
 
     @property
     def caps(self) -> tuple[float, float, float, float]:
@@ -419,21 +423,27 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # on a bowl's rim and then hold it there to the end), with the grasp phase's authority 1 and the
     # paper's grasp guidance off (beta 0: the lift is the grasp phase's only change), an object carried
     # below where it rested left alone (candidate 16, shipped 2026-11-25: a pause while carrying a bowl
-    # down from its rest is the policy's)
+    # down from its rest is the policy's); and the rim guide: a hand settled beside the object, outside
+    # where a grasp can close on it, is pulled onto 4.7 cm from its origin until it enters the grasp
+    # phase, with the approach phase's authority 1 (candidate 17's configuration, shipped 2026-11-25 as
+    # candidate 18: the learned ACTs +4.3 pp pooled, 15 pairs won and none lost, on blocks no decision
+    # had looked at; docs/method.md)
     "default": PhysVLAConfig(
-        mode="phys", phase_caps=(0.0, 1.0, 0.0, 1.0), beta=0.0, gripper_rule="veto", veto_height_m=0.06,
+        mode="phys", phase_caps=(1.0, 1.0, 0.0, 1.0), beta=0.0, gripper_rule="veto", veto_height_m=0.06,
         veto_reach_m=0.10, veto_reopen=False, place_rule="release_veto", redirect_tol_m=0.02, release_carry=True,
         phase_ref="object", release_assist_m=0.04, assist_still="hand", lift_assist_u=0.5, lift_assist_at_rest=True,
+        rim_guide_m=0.047,
     ),
 }
 # on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the
 # held object is within 2 cm of the target, flung blocks the simulated SO-101 carried at transport
 # speed (eval/results/so101_faults), so it stays off on arms until a rule that knows the object's
-# speed and height is measured. The lift assist (candidate 15) is off there too: it was measured on
-# LIBERO's delta-pose arm only, and it would move the arm with the grasp phase's authority.
+# speed and height is measured. The lift assist (candidate 15) and the rim guide (candidate 18) are off
+# there too: they were measured on LIBERO's delta-pose arm and its bowls only, and they would move the
+# arm with the grasp and approach phases' authority.
 PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), place_rule="decelerate",
                                             release_assist_m=0.0, lift_assist_u=0.0, lift_assist_at_rest=False,
-                                            beta=0.5)
+                                            rim_guide_m=0.0, beta=0.5)
 DEFAULT_PRESET = "default"
 ARM_PRESET = "arm"
 

@@ -90,6 +90,10 @@ def test_the_rim_guide_is_refused_where_it_could_not_act_and_says_what_to_set():
         PhysVLAConfig(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0), layout=absolute)
     with pytest.raises(ValueError, match="delta_grasp_m"):
         PhysVLAConfig(rim_guide_m=0.06, phase_caps=(1.0, 1.0, 0.0, 1.0))
+    with pytest.raises(ValueError, match="chunk_phase_caps"):  # refused when built, not when a chunked policy comes
+        PhysVLAConfig(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0), chunk_phase_caps=(0.0, 0.05, 0.0, 1.0))
+    with pytest.raises(ValueError, match="chunk_phase_caps"):
+        PhysVLAConfig(lift_assist_u=0.5, phase_caps=(0.0, 1.0, 0.0, 1.0), chunk_phase_caps=(0.0, 0.0, 0.0, 1.0))
     assert PhysVLAConfig(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0)).rim_guide_m == 0.047
 
 

@@ -367,3 +367,26 @@ def test_the_shipped_default_lifts_a_still_rim_hold_and_the_arm_preset_does_not(
         else:
             assert z[: lifts_at - 1] == [-0.02] * (lifts_at - 1) and z[lifts_at - 1:] == [0.5] * (16 - lifts_at)
         assert all(np.array_equal(np.delete(o, 2), np.delete(hold[0], 2)) for o in outs), name
+
+
+def test_the_shipped_default_pulls_a_settled_miss_onto_the_rim_and_the_arm_preset_does_not():
+    """Candidate 17's traced failure (the jitter expert's aim error sets its rim grasp 9 cm from the
+    bowl's origin, outside the wall; it hovers there and closes on nothing): the default leaves the
+    first steps (the hand has not been seen settled), then commands x, y toward the rim point on the
+    hand's own line, z and the gripper the policy's; `arm` executes the policy's action."""
+    from lerobot_physvla.core.config import PRESETS
+    from lerobot_physvla.core.corrections.base import RIM_SETTLE_STEPS
+
+    st = make_state(eef=(0.031, -0.085, 0.968), obj=(0.0, 0.0, 0.898), target=(0.2, 0.1, 0.9))
+    hover = np.array([[0.1, -0.05, -0.3, 0.0, 0.0, 0.0, -1.0]])  # open, a small noisy move
+    for name in ("default", "arm"):
+        c = Corrector(PRESETS[name])
+        outs = [c(hover, st)[0] for _ in range(RIM_SETTLE_STEPS + 3)]
+        assert all(c.last.phase == Phase.APPROACH)
+        assert all(np.array_equal(o, hover[0]) for o in outs[:RIM_SETTLE_STEPS]), name
+        for o in outs[RIM_SETTLE_STEPS:]:
+            if name == "arm":
+                np.testing.assert_array_equal(o, hover[0])
+            else:
+                assert o[0] < 0 < o[1], o  # toward the bowl, x +3.1 -> +1.6 cm, y -8.5 -> -4.4 cm
+                np.testing.assert_array_equal(o[2:], hover[0, 2:])
