@@ -19,13 +19,14 @@ CORRECTIONS = ("approach veto", "grasp guidance", "transport EMA + lift", "place
 PHASE_INDEX = {**{name: i for i, name in enumerate(PHASE_NAMES)}, "pass-through": -1}  # phase_timeline's names
 PHASE_COLOURS = ("#dbe9f6", "#fde2c8", "#d9f0d3", "#eadcf0")
 SHORT = {"approach veto": "veto", "grasp guidance": "grasp", "transport EMA + lift": "transport",
-         "place guidance": "place", "branch B": "B"}
+         "place guidance": "place", "branch B": "B", "rim guide": "rim"}
 
 
 def corrections_by_phase(raw: np.ndarray, corrected: np.ndarray, phase: np.ndarray, layout) -> dict[str, dict]:
     """How often and how much each correction changed the action: per phase, the frames spent in
     it, the frames whose action it changed (the gripper for the approach veto, the position
-    channels otherwise) and the mean largest change on those frames, action units."""
+    channels otherwise) and the mean largest change on those frames, action units; and the rim
+    guide (rim_guide_m: the position channels in the approach phase)."""
     raw, corrected, phase = np.asarray(raw, float), np.asarray(corrected, float), np.asarray(phase)
     delta = np.abs(corrected - raw) if raw.size else np.zeros((0, layout.dim))
     pos, g = list(layout.pos), layout.gripper
@@ -33,10 +34,16 @@ def corrections_by_phase(raw: np.ndarray, corrected: np.ndarray, phase: np.ndarr
     for p, name in enumerate(CORRECTIONS):
         sel = phase == p
         ch = [g] if p == 0 and g is not None else pos
-        changed = sel & (delta[:, ch].max(axis=1) > 0) if len(delta) else sel
-        out[name] = {"frames_in_phase": int(sel.sum()), "frames_changed": int(changed.sum()),
-                     "mean_abs_change": float(delta[changed][:, ch].max(axis=1).mean()) if changed.any() else 0.0}
+        out[name] = _changed(delta, sel, ch)
+    out["rim guide"] = _changed(delta, phase == 0, pos)
     return out
+
+
+def _changed(delta: np.ndarray, sel: np.ndarray, ch: list) -> dict:
+    """Frames in `sel`, those whose channels `ch` changed, and the mean largest change there."""
+    changed = sel & (delta[:, ch].max(axis=1) > 0) if len(delta) else sel
+    return {"frames_in_phase": int(sel.sum()), "frames_changed": int(changed.sum()),
+            "mean_abs_change": float(delta[changed][:, ch].max(axis=1).mean()) if changed.any() else 0.0}
 
 
 def phase_timeline(phases) -> list[list]:
