@@ -344,13 +344,14 @@ class PhysVLAConfig:
         if self.rim_guide_m > 0.0 and self.action_layout.absolute:
             raise ValueError("physvla: rim_guide_m commands a delta layout's x, y; this layout's positions are "
                              "absolute targets: leave rim_guide_m at 0")
-        for caps, name in ((self.caps, "phase_caps"), (tuple(self.chunk_phase_caps) or (1.0,) * 4, "chunk_phase_caps")):
-            if self.rim_guide_m > 0.0 and caps[0] == 0.0:
+        chunk = tuple(self.chunk_phase_caps)  # () = the phase caps for every policy
+        for caps, name in ((self.caps, "phase_caps"), (chunk, "chunk_phase_caps")):
+            if self.rim_guide_m > 0.0 and caps and caps[0] == 0.0:
                 raise ValueError(f"physvla: rim_guide_m acts with the approach phase's authority, which is 0 in {name}: "
                                  f"set {name} with an approach entry above 0 (e.g. (1, 1, 0, 1)), or rim_guide_m=0")
-            if self.lift_assist_u > 0.0 and caps[1] == 0.0 and name == "chunk_phase_caps":
-                raise ValueError("physvla: lift_assist_u acts with the grasp phase's authority, which is 0 in "
-                                 "chunk_phase_caps: set its grasp entry above 0, or lift_assist_u=0")
+        if self.lift_assist_u > 0.0 and chunk and chunk[1] == 0.0:  # (phase_caps: checked above)
+            raise ValueError("physvla: lift_assist_u acts with the grasp phase's authority, which is 0 in "
+                             "chunk_phase_caps: set its grasp entry above 0, or lift_assist_u=0")
 
     @property
     def caps(self) -> tuple[float, float, float, float]:
