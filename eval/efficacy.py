@@ -504,6 +504,10 @@ CONFIRM18_BACKBONES = {"expert_clean": BACKBONES["expert_clean"],
                        **{f"{b}+{FRESH_DRAWS_18}": {**BACKBONES[b], "draw_offset": FRESH_DRAWS_18}
                           for b in ("expert_jitter", "expert_faulty", "expert_place_bias")}}
 CONFIRM18_SEEDS = range(15, 20)  # the learned ACTs
+# The learned ACTs' baseline on init states 15-19 (stage learned18_baseline), run after candidate 18
+# shipped: the shipped default against no correction on a block whose baseline no decision looked at.
+# Nothing is chosen from it; it is reported (section 3q) as it comes.
+LEARNED18_BASELINE = {"baseline": COMPARED["baseline"]}
 LIFT_CONFIRM18 = 120
 # the assist candidates under DESIGN10's rule (or DESIGN16's, or DESIGN17's): n -> (the candidate, its
 # reference, its configurations, need_gain: a pooled interval above 0 over the learned ACTs (True), no
@@ -1052,17 +1056,20 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
             f"confirmation (the failure experts on init states 35-39 with candidate 14's fresh draws, seed + "
             f"{FRESH_DRAWS_14}; the learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)",
             *assist_sections[n], need_gain)
+    learned18 = [r for r in learned if r["seed"] in CONFIRM18_SEEDS]
+    base18 = any(r["config"] == "baseline" for r in learned18)  # stage learned18_baseline, run after it shipped
     rows, ok = candidate_verdict(  # candidate 18: candidate 17's configuration, DESIGN15's rule, fresh blocks
         [r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
-        [r for r in learned if r["seed"] in CONFIRM18_SEEDS], range(0, 50), tuple(CONFIRM18_BACKBONES), LIFT_CONFIRM18,
-        CANDIDATE_17, CANDIDATE_16, "candidate 18", True, learned_baseline=False)
+        learned18, range(0, 50), tuple(CONFIRM18_BACKBONES), LIFT_CONFIRM18,
+        CANDIDATE_17, CANDIDATE_16, "candidate 18", True, learned_baseline=base18)
     if rows:
         verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
         lines += ["", f"## 3q. Candidate 18 (candidate 17's configuration, `{CANDIDATE_17}`, under DESIGN15's rule "
                       "against candidate 16, written after candidate 17's confirmation was seen), blocks no decision "
                       f"looked at: the failure experts on init states 35-39 with fresh draws, seed + {FRESH_DRAWS_18}; "
                       f"the learned ACTs on init states {CONFIRM18_SEEDS.start}-{CONFIRM18_SEEDS.stop - 1} (candidate "
-                      f"16 and 17 only: no baseline there); Lift / Fetch {LIFT_CONFIRM18}-{LIFT_CONFIRM18 + 19}: "
+                      + ("16 and 17; their baseline there ran after it shipped, stage learned18_baseline" if base18 else
+                         "16 and 17 only: no baseline there") + f"); Lift / Fetch {LIFT_CONFIRM18}-{LIFT_CONFIRM18 + 19}: "
                       f"{verdict} the rule written before it ran (eval/efficacy.py DESIGN18: pooled over the learned "
                       f"ACTs an interval above 0 against candidate 16, `{CANDIDATE_16}` here; no backbone losing more "
                       "than 1 pair net against it; Lift / Fetch within 1 of 20 of it)\n", *PAIRED_HEAD, *rows]

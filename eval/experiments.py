@@ -660,14 +660,14 @@ EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3
                    "learned10_confirm,confirm10,learned11,learned11_confirm,design12,learned12,confirm12,"
                    "learned12_confirm,design13,learned13,confirm13,learned13_confirm,design14,learned14,confirm14,"
                    "learned14_confirm,design15,learned15,confirm15,learned15_confirm,design16,learned16,confirm16,learned16_confirm,"
-                   "design17,learned17,confirm17,learned17_confirm,confirm18,learned18_confirm")
+                   "design17,learned17,confirm17,learned17_confirm,confirm18,learned18_confirm,learned18_baseline")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
                   "learned10", "learned10_confirm", "learned11", "learned11_confirm", "learned12",
                   "learned12_confirm", "learned13", "learned13_confirm", "learned14", "learned14_confirm",
                   "learned15", "learned15_confirm", "learned16", "learned16_confirm", "learned17", "learned17_confirm",
-                  "learned18_confirm"}
+                  "learned18_confirm", "learned18_baseline"}
 LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,act_chunk_mid2,"
            "diffusion_chunk")
 
@@ -849,6 +849,8 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
             blocks.append((ef.CONFIRM11_SEEDS, names, configs))
     if "learned18_confirm" in stages:  # candidate 18 (candidate 17's configuration) and 16 on init states 15-19
         blocks.append((ef.CONFIRM18_SEEDS, names, ef.LEARNED18))
+    if "learned18_baseline" in stages:  # no correction there, run after candidate 18 shipped
+        blocks.append((ef.CONFIRM18_SEEDS, names, ef.LEARNED18_BASELINE))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
