@@ -715,7 +715,8 @@ def _shipped_headroom_lines(records, learned) -> list[str]:
               for name, seeds in ((b, DESIGN_SEEDS), (f"{b}+{FRESH_DRAWS_14}", CONFIRM7_SEEDS),
                                   (f"{b}+{FRESH_DRAWS_18}", CONFIRM7_SEEDS))]
     blocks += [(b, b, seeds, learned, lambda r: r["task_id"] in solved)
-               for b in dict.fromkeys(r["backbone"] for r in learned) for seeds in (DESIGN_SEEDS, CONFIRM11_SEEDS)]
+               for b in dict.fromkeys(r["backbone"] for r in learned)
+               for seeds in (DESIGN_SEEDS, CONFIRM11_SEEDS, CONFIRM18_SEEDS)]
     rows = []
     for b, name, seeds, recs, reachable in blocks:
         cell = {c: {(r["task_id"], r["seed"]): r for r in recs if r["backbone"] == name and r["seed"] in seeds

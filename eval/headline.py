@@ -150,8 +150,9 @@ def efficacy_table() -> list[str]:
     lines += _confirmation_table(recs, ef, ef.CANDIDATE_17, ef.CANDIDATE_16, ef.CONFIRM18_BACKBONES, ef.FRESH_DRAWS_18,
                                  "3q", "the shipped default's (candidate 17's configuration, `{cand}`: candidate 16 + "
                                  "the rim guide, shipped as candidate 18)", "candidate 16, shipped until 2026-11-25",
-                                 looked="no decision looked at these episodes before candidate 18's rule was written",
-                                 learned_seeds=None)
+                                 looked="no decision looked at these episodes before candidate 18's rule was written (the "
+                                 "learned ACTs' baseline there ran after it shipped; nothing was chosen from it)",
+                                 learned_seeds="15-19")
     lines += _confirmation_table(recs, ef, ef.CANDIDATE_17, ef.CANDIDATE_16, ef.CONFIRM14_BACKBONES, ef.FRESH_DRAWS_14,
                                  "3p", "candidate 17's (`{cand}`)", "candidate 16",
                                  looked="no decision about candidate 17's design looked at these episodes; candidate "
