@@ -59,3 +59,20 @@ def test_a_cut_short_cell_is_left_out(tmp_path, monkeypatch):
     experiments.efficacy(_args("confirm4"))
     text = (tmp_path / "efficacy" / "README.md").read_text()
     assert "## 3d." not in text and f"expert_clean / {ef.CANDIDATE_4} |" not in text  # 43 of 50 pairs: no row
+
+
+def test_shipped_jerk_is_split_by_what_the_pair_did():
+    """Section 8d: the shipped default's jerk ratio over all pairs and per outcome group, from the
+    records: turned pairs (baseline fails, the default succeeds) are the ones whose motion changed."""
+    recs = []
+    for t in range(10):
+        for s in ef.DESIGN_SEEDS:
+            turned, both = t < 2, t >= 5  # tasks 0-1 turned (jerk x3), 5-9 both succeed (x1), 2-4 neither (x1)
+            for config, ok, jerk in (("baseline", both, 1.0), (ef.SHIPPED, both or turned, 3.0 if turned else 1.0)):
+                recs.append({"backbone": "expert_faulty", "config": config, "task_id": t, "seed": s,
+                             "scene": "libero_spatial", "success": ok, "mean_jerk": jerk})
+    lines = ef._shipped_jerk_lines(recs, [])
+    row = next(line for line in lines if line.startswith("| expert_faulty | 0-4"))
+    # all 50: (10 x 3 + 40 x 1) / 50 = 1.4; both 25 at x1; turned 10 at x3; neither 15 at x1; none lost
+    assert row == "| expert_faulty | 0-4 | x1.40 (50) | x1.00 (25) | x3.00 (10) | x1.00 (15) | - (0) |"
+    assert ef._shipped_jerk_lines(recs[:-2], []) == []  # 49 pairs: no complete cell, no section
