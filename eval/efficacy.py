@@ -776,7 +776,8 @@ def _shipped_headroom_lines(records, learned) -> list[str]:
         lost = sum(cell["baseline"][k]["success"] and not cell[SHIPPED][k]["success"] for k in keys)
         need = int(np.ceil(0.10 * len(keys)))
         rate = np.mean([cell[SHIPPED][k]["success"] for k in keys])
-        rows.append(f"| {b} | {_block_label(b, name, seeds)} | {len(keys)} | {np.mean([cell['baseline'][k]['success'] for k in keys]):.0%} | {rate:.0%} | "
+        rows.append(f"| {b} | {_block_label(b, name, seeds)} | {len(keys)} | "
+                    f"{np.mean([cell['baseline'][k]['success'] for k in keys]):.0%} | {rate:.0%} | "
                     f"{len(fail)} | {len(reach)} | {sum(k in reach for k in won)} / {sum(k not in reach for k in won)} "
                     f"| {lost} | +{100 * len(reach) / len(keys):.0f} pp | {need} of {len(reach)}"
                     f"{'' if need <= len(reach) else ': out of reach'} |")
