@@ -172,6 +172,16 @@ CANDIDATE_16 = "default + lift assist at rest"
 # the clean, faulty and place-bias experts' 150 pairs. The corrector's own rim_guide_m reproduces the
 # probe's jitter pairs (6 / 1).
 CANDIDATE_17 = "default + rim guide"
+# candidate 19: candidate 17 (the shipped default) whose rim guide goes on pulling in the grasp phase
+# (rim_guide_into_grasp): a pull begun in the approach phase ends at the rim (within 5 mm of 4.7 cm from
+# the object's origin), not at delta_grasp (6 cm). Grounded in act_single_weak's task 3 on the design
+# block (init states 0-4), all 5 of its pairs failing under candidate 17 and uncorrected: the ACT hovers
+# open 5.8-6.0 cm from the bowl's origin, the guide pulls it in to delta_grasp, the phase turns to grasp
+# and the pull ends, the ACT drifts out, the guide pulls it back (chatter at the phase boundary; the
+# fingers never straddle the rim). A probe (stepping the harness's scene, not committed) continuing the
+# pull inside delta_grasp until the hand was within 5 mm of the rim point turned all 5 and lost none of
+# act_single_weak's tasks 3 and 9 (10 pairs).
+CANDIDATE_19 = "default + rim guide into grasp"
 
 # Each correction alone (the others' authority 0), phys mode.
 ALONE = {
@@ -256,6 +266,9 @@ COMPARED = {
                                     beta=0.0, lift_assist_u=0.5, lift_assist_at_rest=True),
     CANDIDATE_17: DEFAULT_6.replace(release_assist_m=0.04, assist_still="hand", phase_caps=(1.0, 1.0, 0.0, 1.0),
                                     beta=0.0, lift_assist_u=0.5, lift_assist_at_rest=True, rim_guide_m=0.047),
+    CANDIDATE_19: DEFAULT_6.replace(release_assist_m=0.04, assist_still="hand", phase_caps=(1.0, 1.0, 0.0, 1.0),
+                                    beta=0.0, lift_assist_u=0.5, lift_assist_at_rest=True, rim_guide_m=0.047,
+                                    rim_guide_into_grasp=True),
     CANDIDATE_14: DEFAULT_6.replace(release_assist_m=0.04, assist_still="hand", lowpass="adaptive",
                                     lowpass_space="target", lowpass_alpha_max=0.8, lowpass_rough="median",
                                     lowpass_phases="approach,grasp,place"),
@@ -307,7 +320,7 @@ CANDIDATE_7_VARIANTS = (CANDIDATE_7, CANDIDATE_7 + ", alpha_max=0.8", CANDIDATE_
                         CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1", CANDIDATE_8)
 LIFT_REPORTED = (*LIFT_CONFIGS, *CANDIDATE_7_VARIANTS, CANDIDATE_9, CANDIDATE_10, CANDIDATE_12,
                  CANDIDATE_13, CANDIDATE_13B, CANDIDATE_14, CANDIDATE_15,
-                 CANDIDATE_16, CANDIDATE_17)  # rows of the Lift / Fetch sections
+                 CANDIDATE_16, CANDIDATE_17, CANDIDATE_19)  # rows of the Lift / Fetch sections
 # candidate 7's variants on the design seeds (LIBERO 0-4 and Lift / Fetch 7-26: stage design7)
 DESIGN7 = {name: COMPARED[name] for name in ("baseline", *CANDIDATE_7_VARIANTS)}
 # Chosen on the design seeds: candidate 7 (alpha_max 0.6, no speed fading): the jitter expert's jerk
@@ -509,18 +522,43 @@ CONFIRM18_SEEDS = range(15, 20)  # the learned ACTs
 # Nothing is chosen from it; it is reported (section 3q) as it comes.
 LEARNED18_BASELINE = {"baseline": COMPARED["baseline"]}
 LIFT_CONFIRM18 = 120
-# the assist candidates under DESIGN10's rule (or DESIGN16's, or DESIGN17's): n -> (the candidate, its
+# Candidate 19 against candidate 17 (the shipped default's configuration, its reference) and baseline:
+# design19 (every expert on LIBERO 0-4, Lift / Fetch 7-26; candidate 17's and baseline's units there ran
+# for candidate 17), learned19 (every learned ACT on 0-4); its probe looked at act_single_weak's design
+# episodes, so the design verdict checks the implementation and the other backbones, and the
+# confirmation is the test, on blocks no decision has looked at: confirm19, the failure experts on init
+# states 35-39 with fresh draws seed + 6000 (and the clean expert's episodes there) and Lift / Fetch
+# seeds 140-159; learned19_confirm, the learned ACTs on init states 20-24 (where their demonstrations
+# were recorded, like 10-19; never evaluated before; 40-49 stay untouched). Rule, written before any of
+# its units ran: it replaces the shipped default if on each block (a) pooled over the learned ACTs it
+# wins more pairs than it loses against candidate 17, (b) no backbone, expert or learned, loses more
+# than 1 pair net against candidate 17, and (c) every Lift / Fetch cell succeeds at most 1 of 20 fewer
+# times than candidate 17. The confirmation runs only if the design seeds pass.
+DESIGN19 = {name: COMPARED[name] for name in ("baseline", CANDIDATE_17, CANDIDATE_19)}
+FRESH_DRAWS_19 = 6000
+CONFIRM19_BACKBONES = {"expert_clean": BACKBONES["expert_clean"],
+                       **{f"{b}+{FRESH_DRAWS_19}": {**BACKBONES[b], "draw_offset": FRESH_DRAWS_19}
+                          for b in ("expert_jitter", "expert_faulty", "expert_place_bias")}}
+CONFIRM19_SEEDS = range(20, 25)  # the learned ACTs
+LIFT_CONFIRM19 = 140
+# the assist candidates under DESIGN10's rule (or DESIGN16's, 17's, 19's): n -> (the candidate, its
 # reference, its configurations, need_gain: a pooled interval above 0 over the learned ACTs (True), no
-# net loss there (False), or no net loss there and more pairs won than lost on this expert (its name))
+# net loss there (False), more pairs won than lost there ("learned"), or no net loss there and more
+# pairs won than lost on this expert (its name))
 ASSIST_CANDIDATES = {15: (CANDIDATE_15, CANDIDATE_12, DESIGN15, True),
                      16: (CANDIDATE_16, CANDIDATE_15, DESIGN16, False),
-                     17: (CANDIDATE_17, CANDIDATE_16, DESIGN17, "expert_jitter")}
+                     17: (CANDIDATE_17, CANDIDATE_16, DESIGN17, "expert_jitter"),
+                     19: (CANDIDATE_19, CANDIDATE_17, DESIGN19, "learned")}
 LOWPASS_ALPHAS = (0.4, 0.5, 0.6, 0.7, 0.8)  # the lowpass stage's alpha_max values
 DESIGN_SEEDS, CONFIRM_SEEDS, SCREEN_SEEDS = range(0, 5), range(5, 10), range(0, 2)
 # pairs in a complete LIBERO cell (10 tasks x 5 init states): the block sections show complete cells
 # only, so a stage that was cut short (its units on disk are kept and resumed) shows no partial row
 FULL_CELL = 50
 LIFT_DESIGN, LIFT_CONFIRM = 7, 100  # first seeds of the Lift / Fetch blocks (20 trials each)
+# the assist candidates' confirmation blocks: n -> (the experts on init states 35-39 with their fresh
+# draws, the learned ACTs' init states, the first Lift / Fetch seed)
+ASSIST_CONFIRM = {**{n: (CONFIRM14_BACKBONES, CONFIRM11_SEEDS, LIFT_CONFIRM) for n in (15, 16, 17)},
+                  19: (CONFIRM19_BACKBONES, CONFIRM19_SEEDS, LIFT_CONFIRM19)}
 
 
 def paired(records, config: str, backbone: str, base: str = "baseline") -> dict:
@@ -834,8 +872,9 @@ def candidate_verdict(records, learned, seeds, expert_names, lift_first: int, ca
                       need_gain: bool | str = True, learned_baseline: bool = True) -> tuple[list[str], bool | None]:
     """A candidate against its reference (the shipped default when it ran: candidate 10 against 6,
     candidate 12 against 10) and baseline on one block: rows and the rule's verdict (DESIGN10's
-    comment; need_gain False: DESIGN16's, the pooled pairs won at least those lost; need_gain an
-    expert's name: DESIGN17's, that and more pairs won than lost on that expert), or None when a
+    comment; need_gain False: DESIGN16's, the pooled pairs won at least those lost; "learned": DESIGN19's,
+    more pooled pairs won than lost; an expert's name: DESIGN17's, the pooled pairs won at least those
+    lost and more pairs won than lost on that expert), or None when a
     cell of the block is missing. learned_baseline False: the learned ACTs ran no baseline on this block
     (their rows are against `ref` only)."""
     recs, lrecs = _block(records, seeds), _block(list(learned), seeds)
@@ -855,7 +894,7 @@ def candidate_verdict(records, learned, seeds, expert_names, lift_first: int, ca
         return rows, None
     row, above = _pooled_row(pool, "learned ACTs", label, ref)
     rows.append(row)
-    ok &= above if need_gain is True else sum(pool) >= 0
+    ok &= above if need_gain is True else (sum(pool) > 0 if need_gain == "learned" else sum(pool) >= 0)
     got, base_got = _lift_successes(records, lift_first, cand), _lift_successes(records, lift_first, ref)
     if set(got) != {"lift sigma=0.00", "lift sigma=0.40", "fetch sigma=0.00", "fetch sigma=0.40"} or set(base_got) != set(got):
         return rows, None
@@ -921,14 +960,14 @@ def candidate11_verdict(learned, seeds) -> tuple[list[str], bool | None]:
 
 def _candidate_sections(records, learned, cand: str, ref: str, label: str, confirm_backbones: dict,
                         learned_confirm_seeds: range, confirm_title: str, heading: str, rule: str,
-                        need_gain: bool = True) -> list[str]:
+                        need_gain: bool | str = True, lift_confirm: int = LIFT_CONFIRM) -> list[str]:
     """The report's sections of a candidate under DESIGN10's rule against its reference `ref`: on the
     design seeds and on its confirmation blocks (the experts `confirm_backbones` on 35-39, the learned
-    ACTs on `learned_confirm_seeds`, Lift / Fetch 100-119), its rows and the rule's verdict."""
+    ACTs on `learned_confirm_seeds`, Lift / Fetch from `lift_confirm`), its rows and the rule's verdict."""
     lines = []
     for title, seeds, experts, first in (
             ("design seeds (LIBERO init states 0-4, Lift / Fetch 7-26)", DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN),
-            (confirm_title, None, tuple(confirm_backbones), LIFT_CONFIRM)):
+            (confirm_title, None, tuple(confirm_backbones), lift_confirm)):
         if seeds is None:  # the experts' and the learned ACTs' confirmation blocks differ
             rows, ok = candidate_verdict([r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
                                          [r for r in learned if r["seed"] in learned_confirm_seeds], range(0, 50), experts,
@@ -1096,13 +1135,24 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
              "grasp, is pulled onto 4.7 cm from its origin, `rim_guide_m=0.047`)",
              f"DESIGN17: the jitter expert winning more pairs than it loses against candidate 16, `{CANDIDATE_16}` "
              "here; no backbone losing more than 1 pair net against it; pooled over the learned ACTs at least as "
-             "many pairs won as lost; Lift / Fetch within 1 of 20 of it")}
+             "many pairs won as lost; Lift / Fetch within 1 of 20 of it"),
+        19: ("3r. Candidate 19 (candidate 17 whose rim guide goes on pulling in the grasp phase until the hand "
+             "is at the rim, `rim_guide_into_grasp`)",
+             f"DESIGN19: pooled over the learned ACTs more pairs won than lost against candidate 17, `{CANDIDATE_17}` "
+             "here; no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it")}
+    confirm_titles = {
+        **{n: f"confirmation (the failure experts on init states 35-39 with candidate 14's fresh draws, seed + "
+              f"{FRESH_DRAWS_14}; the learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at "
+              "these)" for n in (15, 16, 17)},
+        19: f"confirmation (the failure experts on init states 35-39 with fresh draws, seed + {FRESH_DRAWS_19}; the "
+            f"learned ACTs on init states {CONFIRM19_SEEDS.start}-{CONFIRM19_SEEDS.stop - 1}; Lift / Fetch "
+            f"{LIFT_CONFIRM19}-{LIFT_CONFIRM19 + 19}; no decision about it looked at these)"}
     for n, (cand, ref, _, need_gain) in ASSIST_CANDIDATES.items():
+        if n == 19:  # after candidate 18's section (3q): 19 is reported in order
+            continue
         lines += _candidate_sections(
-            records, learned, cand, ref, f"candidate {n}", CONFIRM14_BACKBONES, CONFIRM11_SEEDS,
-            f"confirmation (the failure experts on init states 35-39 with candidate 14's fresh draws, seed + "
-            f"{FRESH_DRAWS_14}; the learned ACTs on 10-14; Lift / Fetch 100-119; no decision about it looked at these)",
-            *assist_sections[n], need_gain)
+            records, learned, cand, ref, f"candidate {n}", ASSIST_CONFIRM[n][0], ASSIST_CONFIRM[n][1],
+            confirm_titles[n], *assist_sections[n], need_gain, ASSIST_CONFIRM[n][2])
     learned18 = [r for r in learned if r["seed"] in CONFIRM18_SEEDS]
     base18 = any(r["config"] == "baseline" for r in learned18)  # stage learned18_baseline, run after it shipped
     rows, ok = candidate_verdict(  # candidate 18: candidate 17's configuration, DESIGN15's rule, fresh blocks
@@ -1120,7 +1170,12 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
                       f"{verdict} the rule written before it ran (eval/efficacy.py DESIGN18: pooled over the learned "
                       f"ACTs an interval above 0 against candidate 16, `{CANDIDATE_16}` here; no backbone losing more "
                       "than 1 pair net against it; Lift / Fetch within 1 of 20 of it)\n", *PAIRED_HEAD, *rows]
-    lift = _lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM) + _lift_rows(records, LIFT_CONFIRM18)
+    cand, ref, _, need_gain = ASSIST_CANDIDATES[19]
+    lines += _candidate_sections(
+        records, learned, cand, ref, "candidate 19", ASSIST_CONFIRM[19][0], ASSIST_CONFIRM[19][1],
+        confirm_titles[19], *assist_sections[19], need_gain, ASSIST_CONFIRM[19][2])
+    lift = (_lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM) + _lift_rows(records, LIFT_CONFIRM18)
+            + _lift_rows(records, LIFT_CONFIRM19))
     if lift:
         lines += ["", "## 4. Lift and Fetch: grasp-phase noise, sigma 0 and 0.40 (20 trials per cell)\n",
                   "| sim | block | configuration | success sigma 0 | success sigma 0.40 | jerk sigma 0 | jerk sigma 0.40 | "

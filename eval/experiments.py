@@ -660,14 +660,15 @@ EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3
                    "learned10_confirm,confirm10,learned11,learned11_confirm,design12,learned12,confirm12,"
                    "learned12_confirm,design13,learned13,confirm13,learned13_confirm,design14,learned14,confirm14,"
                    "learned14_confirm,design15,learned15,confirm15,learned15_confirm,design16,learned16,confirm16,learned16_confirm,"
-                   "design17,learned17,confirm17,learned17_confirm,confirm18,learned18_confirm,learned18_baseline")
+                   "design17,learned17,confirm17,learned17_confirm,confirm18,learned18_confirm,learned18_baseline,"
+                   "design19,learned19,confirm19,learned19_confirm")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
                   "learned10", "learned10_confirm", "learned11", "learned11_confirm", "learned12",
                   "learned12_confirm", "learned13", "learned13_confirm", "learned14", "learned14_confirm",
                   "learned15", "learned15_confirm", "learned16", "learned16_confirm", "learned17", "learned17_confirm",
-                  "learned18_confirm", "learned18_baseline"}
+                  "learned18_confirm", "learned18_baseline", "learned19", "learned19_confirm"}
 LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,act_chunk_mid2,"
            "diffusion_chunk")
 
@@ -761,9 +762,10 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, fresh[b]) for name, cfg in _lowpass_confirm_configs(n).items()
                       for b in fresh for t in range(10) for s in ef.CONFIRM9_SEEDS]
     for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items():
-        if f"confirm{n}" in stages:  # init states 35-39, candidate 14's fresh failure draws seed + 4000
-            units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM14_BACKBONES[b]) for name, cfg in configs.items()
-                      for b in ef.CONFIRM14_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
+        fresh = ef.ASSIST_CONFIRM[n][0]  # init states 35-39, fresh failure draws (15-17: seed + 4000, 19: + 6000)
+        if f"confirm{n}" in stages:
+            units += [Unit(b, name, cfg.to_dict(), t, s, 1, fresh[b]) for name, cfg in configs.items()
+                      for b in fresh for t in range(10) for s in ef.CONFIRM9_SEEDS]
     if "confirm18" in stages:  # init states 35-39, fresh failure draws seed + 5000
         units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM18_BACKBONES[b]) for name, cfg in ef.DESIGN18.items()
                   for b in ef.CONFIRM18_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
@@ -774,7 +776,7 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
                    "confirm12": ((ef.LIFT_CONFIRM,), ef.DESIGN12), "design13": ((ef.LIFT_DESIGN,), ef.DESIGN13),
                    "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14), "confirm18": ((ef.LIFT_CONFIRM18,), ef.DESIGN18),
                    **{f"{stage}{n}": ((first,), configs) for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items()
-                      for stage, first in (("design", ef.LIFT_DESIGN), ("confirm", ef.LIFT_CONFIRM))}}
+                      for stage, first in (("design", ef.LIFT_DESIGN), ("confirm", ef.ASSIST_CONFIRM[n][2]))}}
     for n in ef.LOWPASS_CANDIDATES:
         if f"confirm{n}" in stages:
             lift_stages[f"confirm{n}"] = ((ef.LIFT_CONFIRM,), _lowpass_confirm_configs(n))
@@ -845,8 +847,8 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
     for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items():  # the assist candidates (and their references)
         if f"learned{n}" in stages:  # every learned ACT, 0-4
             blocks.append((ef.DESIGN_SEEDS, names, configs))
-        if f"learned{n}_confirm" in stages:  # and on init states 10-14
-            blocks.append((ef.CONFIRM11_SEEDS, names, configs))
+        if f"learned{n}_confirm" in stages:  # and on their confirmation block (15-17: 10-14, 19: 20-24)
+            blocks.append((ef.ASSIST_CONFIRM[n][1], names, configs))
     if "learned18_confirm" in stages:  # candidate 18 (candidate 17's configuration) and 16 on init states 15-19
         blocks.append((ef.CONFIRM18_SEEDS, names, ef.LEARNED18))
     if "learned18_baseline" in stages:  # no correction there, run after candidate 18 shipped

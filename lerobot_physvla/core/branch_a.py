@@ -2,7 +2,9 @@
 
     approach   corrections.approach_veto, or corrections.rim_guide (rim_guide_m > 0; it leaves the
                gripper to the policy and the gripper rule)
-    grasp      corrections.grasp_guidance, then corrections.lift_assist (lift_assist_u > 0)
+    grasp      corrections.grasp_guidance, then corrections.lift_assist (lift_assist_u > 0), then
+               corrections.rim_guide's rim_guide_grasp (rim_guide_into_grasp: a pull begun in approach
+               goes on to the rim)
     transport  corrections.transport_smoothing
     place      corrections.place_deceleration        (eq. 5), or corrections.place_redirect
                (place_rule=redirect), or corrections.release_veto (place_rule=release_veto),
@@ -30,7 +32,8 @@ from numba import njit
 from lerobot_physvla.core.corrections.approach_veto import approach_veto
 from lerobot_physvla.core.corrections.base import (
     ACTIVE, ASSIST_M, CARRIED, CARRY_REACH_M, D_OBJ_XY, D_TGT_XY, EEF, FINGERS, HIGH, HOLD, LIFT, LIFT_ASSIST_U,
-    LIFT_STALL, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_RULE, RELEASE_CARRY, RIM_GUIDE_M, RIM_ON, STALL, TGT,
+    LIFT_STALL, LOW, N_GEO, OBJ, PHASE_REF_OBJECT, PLACE_RULE, RELEASE_CARRY, RIM_GUIDE_GRASP, RIM_GUIDE_M, RIM_ON,
+    STALL, TGT,
 )
 from lerobot_physvla.core.corrections.grasp_guidance import grasp_guidance
 from lerobot_physvla.core.corrections.lift_assist import lift_assist
@@ -38,7 +41,7 @@ from lerobot_physvla.core.corrections.place_deceleration import place_decelerati
 from lerobot_physvla.core.corrections.place_redirect import place_redirect
 from lerobot_physvla.core.corrections.release_assist import release_assist
 from lerobot_physvla.core.corrections.release_veto import release_veto
-from lerobot_physvla.core.corrections.rim_guide import rim_guide, rim_track
+from lerobot_physvla.core.corrections.rim_guide import rim_guide, rim_guide_grasp, rim_track
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
 from lerobot_physvla.core.corrections.transport_smoothing import transport_smoothing
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT, phase_of
@@ -75,6 +78,8 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
         grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit)
         if p[LIFT_ASSIST_U] > 0.0:
             lift_assist(a_raw, a_phys, idx, geo, p, mem, commit)
+        if p[RIM_GUIDE_GRASP] > 0.5:
+            rim_guide_grasp(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == TRANSPORT:
         transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit)
     elif phase == PLACE and p[PLACE_RULE] > 1.5:
@@ -92,7 +97,7 @@ def branch_a_row(a_raw, a_phys, phase, idx, geo, p, mem, commit):
             mem[STALL] = 0.0
         if phase != GRASP:
             mem[LIFT_STALL] = 0.0
-        if phase != APPROACH:
+        if phase != APPROACH and not (phase == GRASP and p[RIM_GUIDE_GRASP] > 0.5):
             mem[RIM_ON] = 0.0
         if p[RIM_GUIDE_M] > 0.0:
             rim_track(geo, mem)

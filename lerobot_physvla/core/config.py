@@ -202,6 +202,11 @@ class PhysVLAConfig:
             metres, 0 = off. Delta layouts only; it acts with the approach phase's authority, so it
             needs that above 0, and the approach phase's candidate then leaves the gripper to the
             policy and the gripper rule (the paper's approach veto is not added to it).
+        rim_guide_into_grasp: with rim_guide_m: a pull begun in the approach phase goes on in the grasp
+            phase (inside delta_grasp) until the hand is within 5 mm of rim_guide_m from the object's
+            origin, rises out of the zone or the policy closes; it never begins there
+            (corrections/rim_guide.py: the traced failure, a hand chattering at delta_grasp). It acts
+            with the grasp phase's authority, so it needs that above 0.
         phase_ref: what d_tgt_xy of eq. (3) measures from once the object is lifted: eef (paper)
             | object (the held object's centre; a rim grasp holds it centimetres off the hand).
         lowpass: off | adaptive: a low-pass on the executed position channels whose strength
@@ -260,6 +265,7 @@ class PhysVLAConfig:
     lift_assist_u: float = 0.0
     lift_assist_at_rest: bool = False
     rim_guide_m: float = 0.0
+    rim_guide_into_grasp: bool = False
     phase_ref: str = "eef"
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
@@ -344,11 +350,17 @@ class PhysVLAConfig:
         if self.rim_guide_m > 0.0 and self.action_layout.absolute:
             raise ValueError("physvla: rim_guide_m commands a delta layout's x, y; this layout's positions are "
                              "absolute targets: leave rim_guide_m at 0")
+        if self.rim_guide_into_grasp and self.rim_guide_m == 0.0:
+            raise ValueError("physvla: rim_guide_into_grasp goes on with the rim guide's pull; set rim_guide_m "
+                             "(e.g. 0.047) or leave rim_guide_into_grasp off")
         chunk = tuple(self.chunk_phase_caps)  # () = the phase caps for every policy
         for caps, name in ((self.caps, "phase_caps"), (chunk, "chunk_phase_caps")):
             if self.rim_guide_m > 0.0 and caps and caps[0] == 0.0:
                 raise ValueError(f"physvla: rim_guide_m acts with the approach phase's authority, which is 0 in {name}: "
                                  f"set {name} with an approach entry above 0 (e.g. (1, 1, 0, 1)), or rim_guide_m=0")
+            if self.rim_guide_into_grasp and caps and caps[1] == 0.0:
+                raise ValueError(f"physvla: rim_guide_into_grasp acts with the grasp phase's authority, which is 0 in "
+                                 f"{name}: set {name} with a grasp entry above 0 (e.g. (1, 1, 0, 1)), or leave it off")
         if self.lift_assist_u > 0.0 and chunk and chunk[1] == 0.0:  # (phase_caps: checked above)
             raise ValueError("physvla: lift_assist_u acts with the grasp phase's authority, which is 0 in "
                              "chunk_phase_caps: set its grasp entry above 0, or lift_assist_u=0")

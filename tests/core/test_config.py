@@ -95,6 +95,12 @@ def test_the_rim_guide_is_refused_where_it_could_not_act_and_says_what_to_set():
     with pytest.raises(ValueError, match="chunk_phase_caps"):
         PhysVLAConfig(lift_assist_u=0.5, phase_caps=(0.0, 1.0, 0.0, 1.0), chunk_phase_caps=(0.0, 0.0, 0.0, 1.0))
     assert PhysVLAConfig(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0)).rim_guide_m == 0.047
+    with pytest.raises(ValueError, match="set rim_guide_m"):
+        PhysVLAConfig(rim_guide_into_grasp=True, phase_caps=(1.0, 1.0, 0.0, 1.0))
+    with pytest.raises(ValueError, match="grasp phase's authority, which is 0 in chunk_phase_caps"):
+        PhysVLAConfig(rim_guide_m=0.047, rim_guide_into_grasp=True, phase_caps=(1.0, 1.0, 0.0, 1.0),
+                      chunk_phase_caps=(1.0, 0.0, 0.0, 1.0))
+    assert PhysVLAConfig(rim_guide_m=0.047, rim_guide_into_grasp=True, phase_caps=(1.0, 1.0, 0.0, 1.0)).rim_guide_into_grasp
 
 
 def test_chunk_phase_caps_apply_only_to_a_policy_that_executes_chunks():

@@ -459,6 +459,52 @@ def test_rim_guide_leaves_a_hand_that_passes_by_closes_or_is_out_of_the_zone(cas
     assert mem[RIM_ON] == 0.0
 
 
+def test_rim_guide_into_grasp_goes_on_to_the_rim_only_for_a_pull_begun_in_approach():
+    """Candidate 19's traced case (act_single_weak, task 3): a hand pulled in to delta_grasp (6 cm) turns the
+    phase to grasp; with rim_guide_into_grasp the pull goes on until the hand is within 5 mm of the rim
+    point, without it (and for a hand that was not being pulled) the grasp phase leaves x, y alone."""
+    from lerobot_physvla.core.branch_a import branch_a_row
+    from lerobot_physvla.core.corrections.base import RIM_ON, RIM_SETTLE_STEPS
+    from lerobot_physvla.core.corrections.rim_guide import RIM_ARRIVE_M
+    from lerobot_physvla.core.phase import APPROACH, GRASP
+
+    for into, latched in ((True, True), (False, True), (True, False)):
+        idx, geo, p, mem, a = _beside(rim_guide_into_grasp=into)
+        out = np.empty(7)
+        if latched:
+            for _ in range(RIM_SETTLE_STEPS + 1):
+                branch_a_row(a, out, APPROACH, idx, geo, p, mem, True)
+            assert mem[RIM_ON] == 1.0
+        geo[EEF:EEF + 2] = [0.0, -0.058]  # inside delta_grasp, 5.8 cm out: the grasp phase
+        branch_a_row(a, out, GRASP, idx, geo, p, mem, True)
+        if into and latched:
+            np.testing.assert_allclose(out[:2], [0.0, (-0.047 + 0.058) / 0.05])  # on toward the rim, along its line
+            np.testing.assert_array_equal(out[2:], a[2:])
+            assert mem[RIM_ON] == 1.0
+        else:
+            np.testing.assert_array_equal(out, a)  # beta 0: the grasp phase is the policy's
+            assert mem[RIM_ON] == 0.0
+    idx, geo, p, mem, a = _beside(rim_guide_into_grasp=True)
+    out = np.empty(7)
+    for _ in range(RIM_SETTLE_STEPS + 1):
+        branch_a_row(a, out, APPROACH, idx, geo, p, mem, True)
+    geo[EEF:EEF + 2] = [0.0, -0.047 - RIM_ARRIVE_M + 0.001]  # arrived: the pull ends and stays off
+    branch_a_row(a, out, GRASP, idx, geo, p, mem, True)
+    np.testing.assert_array_equal(out, a)
+    geo[EEF:EEF + 2] = [0.0, -0.058]
+    branch_a_row(a, out, GRASP, idx, geo, p, mem, True)
+    np.testing.assert_array_equal(out, a)
+    assert mem[RIM_ON] == 0.0
+    idx, geo, p, mem, a = _beside(rim_guide_into_grasp=True)  # latched again, then the policy closes: it ends
+    for _ in range(RIM_SETTLE_STEPS + 1):
+        branch_a_row(a, out, APPROACH, idx, geo, p, mem, True)
+    geo[EEF:EEF + 2] = [0.0, -0.058]
+    a[6] = 1.0
+    branch_a_row(a, out, GRASP, idx, geo, p, mem, True)
+    np.testing.assert_array_equal(out, a)
+    assert mem[RIM_ON] == 0.0
+
+
 def test_branch_a_runs_the_rim_guide_in_approach_only_leaving_the_gripper_to_the_policy():
     from lerobot_physvla.core.branch_a import branch_a_row
     from lerobot_physvla.core.corrections.base import RIM_AT, RIM_ON, RIM_SETTLE_STEPS

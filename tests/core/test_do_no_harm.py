@@ -54,6 +54,7 @@ def test_any_state_field_and_action_gives_a_finite_in_bounds_action(
                           release_assist_m=0.04 * (seed % 2), assist_still=("action", "hand")[seed % 4 > 1],
                           lift_assist_u=0.5 * (seed % 3 != 1), assist_steps=1 + seed % 3,
                           lift_assist_at_rest=seed % 4 == 0, rim_guide_m=0.047 * (seed % 5 > 1),
+                          rim_guide_into_grasp=seed % 5 > 2,
                           chunk_phase_caps=(0.5 * (seed % 5 > 1), 0.05, 0.0, 1.0))
     b = 3
     c = Corrector(cfg, b)

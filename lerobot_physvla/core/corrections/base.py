@@ -35,8 +35,8 @@ N_GEO = 13
 (BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M, LIFT_BIAS_U, ALPHA_TRANSPORT, D_THRESH_M, METRES_PER_UNIT,
  GRIPPER_OPEN, LOW, HIGH, ALPHA_TEMPORAL, PLACE_RULE, REDIRECT_GAIN, PHASE_REF_OBJECT, REDIRECT_TOL_M,
  HOLD_STEPS, RELEASE_CARRY, ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND, LIFT_ASSIST_U, LIFT_AT_REST,
- RIM_GUIDE_M) = range(24)
-N_PARAMS = 24
+ RIM_GUIDE_M, RIM_GUIDE_GRASP) = range(25)
+N_PARAMS = 25
 # mem
 EMA = 0  # 3 entries: x, y, z, action units
 ACTIVE = 3  # 1.0 once the EMA holds a value (transport: the previous step was in transport)
@@ -49,7 +49,8 @@ LIFT_ANCHOR = 11  # 4 entries: lift_assist_u: the end effector (m, xyz) and the 
 RIM_SETTLE_STEPS = 5  # rim_guide_m: a hand that moved under RIM_SETTLE_M in this many control steps has settled
 RIM_TRACK = 15  # 2 x RIM_SETTLE_STEPS entries: rim_guide_m: the end effector's x, y (m) over the last steps
 RIM_AT = RIM_TRACK + 2 * RIM_SETTLE_STEPS  # rim_guide_m: steps recorded so far (the next slot: this mod RIM_SETTLE_STEPS)
-RIM_ON = RIM_AT + 1  # rim_guide_m: 1.0 while the guide pulls (it goes on until the grasp phase or a close)
+RIM_ON = RIM_AT + 1  # rim_guide_m: 1.0 while the guide pulls (until the grasp phase, or the rim with
+# rim_guide_into_grasp, or a close)
 N_MEM = RIM_ON + 1
 CARRY_REACH_M = 0.10  # release_carry: the object counts as at the hand within this of it (3-D), m
 
@@ -83,4 +84,5 @@ def params(cfg: PhysVLAConfig, layout: ActionLayout) -> np.ndarray:
     p[LIFT_ASSIST_U] = cfg.lift_assist_u
     p[LIFT_AT_REST] = cfg.lift_assist_at_rest
     p[RIM_GUIDE_M] = cfg.rim_guide_m
+    p[RIM_GUIDE_GRASP] = cfg.rim_guide_into_grasp
     return p

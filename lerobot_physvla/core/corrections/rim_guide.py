@@ -9,6 +9,9 @@ grasp can close on it (beyond the paper; rim_guide_m > 0).
         a_xy <- clip((p_obj_xy + rim_guide_m * (p_eef - p_obj)_xy / rho - p_eef_xy) / metres_per_unit, -1, 1)
     z and the gripper stay the policy's; the pull ends where the hand enters the grasp phase
     (rho < delta_grasp), leaves the zone, or the policy closes.
+    grasp phase, rim_guide_into_grasp on (rim_guide_grasp): a pull begun in the approach phase goes on in the grasp
+    phase, the same rule, until the hand is within RIM_ARRIVE_M of rim_guide_m (rho <= rim_guide_m +
+    RIM_ARRIVE_M), rises out of the zone, or the policy closes; it never begins there.
 
 Traced failure (design block, LIBERO init states 0-4, expert_jitter, docs/method.md "Candidate 17"):
 of the jitter expert's 9 failures there that the clean expert succeeds on (section 8b's reachable
@@ -19,6 +22,14 @@ lets a close through within veto_reach_m. A probe pulling such a settled hand to
 expert's rim grasp) turned 6 of the 9 and lost 1 of the jitter expert's 50 pairs, and none of the
 clean or faulty experts' 100. The settle test keeps it off a hand that passes through the zone on
 its way somewhere: pulling every hand that crossed it cost the clean expert 2 of its 50.
+
+Traced failure of the pull ending at delta_grasp (design block, act_single_weak, task 3: all 5 of its
+pairs failed under the shipped default and uncorrected): the ACT hovers open 5.8-6.0 cm from the
+bowl's origin; the guide pulls it in to delta_grasp (6 cm), the phase turns to grasp and the pull
+ends, the ACT drifts out again, and the guide pulls it back: the hand chatters at the phase boundary
+and never reaches the rim. A probe (stepping the harness's scene, not committed) going on pulling
+inside delta_grasp until the hand was within 5 mm of rim_guide_m turned all 5 and lost none of
+tasks 3 and 9's 10 pairs.
 """
 
 from numba import njit
@@ -29,6 +40,7 @@ from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_OPEN, M
 RIM_REACH_M = 0.14  # the zone beside the object: the hand within this of its origin horizontally, metres
 RIM_HEIGHT_M = 0.15  # and below this above it (a policy's hover over a bowl, ~0.135 m for the expert), metres
 RIM_SETTLE_M = 0.01  # settled: moved under this in RIM_SETTLE_STEPS control steps, metres
+RIM_ARRIVE_M = 0.005  # rim_guide_grasp: the pull ends within this of rim_guide_m from the origin, metres
 
 
 @njit(cache=True, error_model="numpy")
@@ -43,11 +55,36 @@ def rim_guide(a_raw, a_phys, idx, geo, p, mem, commit):
     beside = 1e-9 < rho < RIM_REACH_M and geo[EEF + 2] - geo[OBJ + 2] < RIM_HEIGHT_M and not closing
     on = beside and (mem[RIM_ON] > 0.5 or _settled(geo, mem))
     if on:
-        for k, c in ((X, 0), (Y, 1)):
-            goal = geo[OBJ + c] + p[RIM_GUIDE_M] * (dx if c == 0 else dy) / rho
-            a_phys[idx[k]] = min(max((goal - geo[EEF + c]) / p[METRES_PER_UNIT], -1.0), 1.0)
+        _pull(a_phys, idx, geo, p, dx, dy, rho)
     if commit:
         mem[RIM_ON] = 1.0 if on else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def rim_guide_grasp(a_raw, a_phys, idx, geo, p, mem, commit):
+    """Grasp phase: a pull latched in the approach phase (mem[RIM_ON]) goes on onto rim_guide_m while
+    the hand is further than RIM_ARRIVE_M outside it, low (RIM_HEIGHT_M) and open; x, y only."""
+    if mem[RIM_ON] < 0.5:
+        return
+    dx, dy = geo[EEF] - geo[OBJ], geo[EEF + 1] - geo[OBJ + 1]
+    rho = (dx * dx + dy * dy) ** 0.5
+    g = idx[GRIPPER]
+    closing = g >= 0 and a_raw[g] * p[GRIPPER_OPEN] < 0.0
+    on = (p[RIM_GUIDE_M] + RIM_ARRIVE_M < rho and geo[EEF + 2] - geo[OBJ + 2] < RIM_HEIGHT_M
+          and not closing)
+    if on:
+        _pull(a_phys, idx, geo, p, dx, dy, rho)
+    if commit:
+        mem[RIM_ON] = 1.0 if on else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _pull(a_phys, idx, geo, p, dx, dy, rho):
+    """x, y commanded toward the point rim_guide_m from the object's origin on the line through the
+    hand (dx, dy: the hand from the origin, rho their length, metres), clipped to +-1 action unit."""
+    for k, c in ((X, 0), (Y, 1)):
+        goal = geo[OBJ + c] + p[RIM_GUIDE_M] * (dx if c == 0 else dy) / rho
+        a_phys[idx[k]] = min(max((goal - geo[EEF + c]) / p[METRES_PER_UNIT], -1.0), 1.0)
 
 
 @njit(cache=True, error_model="numpy")
