@@ -541,6 +541,24 @@ CONFIRM19_BACKBONES = {"expert_clean": BACKBONES["expert_clean"],
                           for b in ("expert_jitter", "expert_faulty", "expert_place_bias")}}
 CONFIRM19_SEEDS = range(20, 25)  # the learned ACTs
 LIFT_CONFIRM19 = 140
+# Outcome: it failed (b) on the design seeds: the jitter expert 0 / 2 against candidate 17, both pairs
+# on init state 3 (the extreme aim draw, 4.9 cm, whose 6 pairs candidate 17 had turned: there the hand
+# pulled on inside delta_grasp takes another path through the expert's noisy approach); every other
+# expert the same pairs; the learned ACTs won pairs and lost none (section 3r). Not shipped; its
+# confirmation stages are not run (the rule's gate).
+# Candidate 20: candidate 19's configuration (its units: CANDIDATE_19's) under DESIGN15's rule, the one for
+# a correction of the learned ACTs, against candidate 17 (the shipped default's configuration). It was
+# written after candidate 19's design seeds were seen (its learned gain there, its jitter loss on one
+# aim draw), so they are no test of it: it is tested on the blocks named for candidate 19's
+# confirmation, which no decision has looked at: confirm20, the failure experts on init states 35-39
+# with fresh draws seed + 6000 (and the clean expert's episodes there; baseline runs there too) and
+# Lift / Fetch seeds 140-159; learned20_confirm, the learned ACTs on init states 20-24, candidates 17
+# and 19 only. Rule, written before any of those units ran: it replaces the shipped default if there
+# (a) pooled over the learned ACTs its paired difference against candidate 17 has a 95 % interval
+# above 0, (b) no backbone, expert or learned, loses more than 1 pair net against candidate 17, and (c)
+# every Lift / Fetch cell succeeds at most 1 of 20 fewer times than candidate 17.
+DESIGN20 = DESIGN19
+LEARNED20 = {name: COMPARED[name] for name in (CANDIDATE_17, CANDIDATE_19)}
 # the assist candidates under DESIGN10's rule (or DESIGN16's, 17's, 19's): n -> (the candidate, its
 # reference, its configurations, need_gain: a pooled interval above 0 over the learned ACTs (True), no
 # net loss there (False), more pairs won than lost there ("learned"), or no net loss there and more
@@ -960,14 +978,16 @@ def candidate11_verdict(learned, seeds) -> tuple[list[str], bool | None]:
 
 def _candidate_sections(records, learned, cand: str, ref: str, label: str, confirm_backbones: dict,
                         learned_confirm_seeds: range, confirm_title: str, heading: str, rule: str,
-                        need_gain: bool | str = True, lift_confirm: int = LIFT_CONFIRM) -> list[str]:
+                        need_gain: bool | str = True, lift_confirm: int = LIFT_CONFIRM,
+                        confirmation: bool = True) -> list[str]:
     """The report's sections of a candidate under DESIGN10's rule against its reference `ref`: on the
     design seeds and on its confirmation blocks (the experts `confirm_backbones` on 35-39, the learned
-    ACTs on `learned_confirm_seeds`, Lift / Fetch from `lift_confirm`), its rows and the rule's verdict."""
+    ACTs on `learned_confirm_seeds`, Lift / Fetch from `lift_confirm`; confirmation False: the design
+    seeds only), its rows and the rule's verdict."""
     lines = []
     for title, seeds, experts, first in (
             ("design seeds (LIBERO init states 0-4, Lift / Fetch 7-26)", DESIGN_SEEDS, tuple(BACKBONES), LIFT_DESIGN),
-            (confirm_title, None, tuple(confirm_backbones), lift_confirm)):
+            *([(confirm_title, None, tuple(confirm_backbones), lift_confirm)] if confirmation else [])):
         if seeds is None:  # the experts' and the learned ACTs' confirmation blocks differ
             rows, ok = candidate_verdict([r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
                                          [r for r in learned if r["seed"] in learned_confirm_seeds], range(0, 50), experts,
@@ -979,6 +999,28 @@ def _candidate_sections(records, learned, cand: str, ref: str, label: str, confi
             lines += ["", f"## {heading}, {title}: {verdict} the rule written before it ran (eval/efficacy.py {rule})\n",
                       *PAIRED_HEAD, *rows]
     return lines
+
+
+def _fresh_block_section(records, learned, learned_seeds: range, backbones: dict, lift_first: int, cand: str,
+                         ref: str, n: int, heading: str, draws: int, ran: str, rule: str) -> list[str]:
+    """A candidate tested on blocks no decision looked at (candidates 18 and 20): the failure experts
+    `backbones` on init states 35-39, the learned ACTs on `learned_seeds` (`ran`: the configurations
+    they ran there; their baseline, where it ran, stage learned<n>_baseline, after the verdict), Lift /
+    Fetch from `lift_first`; its rows and the rule's verdict (DESIGN15's, against `ref`)."""
+    lrecs = [r for r in learned if r["seed"] in learned_seeds]
+    base = any(r["config"] == "baseline" for r in lrecs)
+    rows, ok = candidate_verdict(
+        [r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
+        lrecs, range(0, 50), tuple(backbones), lift_first, cand, ref, f"candidate {n}", True, learned_baseline=base)
+    if not rows:
+        return []
+    verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
+    return ["", f"## {heading}, blocks no decision looked at: the failure experts on init states 35-39 with fresh "
+                f"draws, seed + {draws}; the learned ACTs on init states {learned_seeds.start}-{learned_seeds.stop - 1} "
+                f"(candidate " + (f"{ran}; their baseline there ran after the verdict, stage learned{n}_baseline" if base
+                                  else f"{ran} only: no baseline there")
+                + f"); Lift / Fetch {lift_first}-{lift_first + 19}: {verdict} the rule written before it ran "
+                f"(eval/efficacy.py {rule})\n", *PAIRED_HEAD, *rows]
 
 
 def _lowpass_sections(records, learned, cand: str, offset: int, confirm_backbones: dict, section: str, heading: str,
@@ -1153,27 +1195,22 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
         lines += _candidate_sections(
             records, learned, cand, ref, f"candidate {n}", ASSIST_CONFIRM[n][0], ASSIST_CONFIRM[n][1],
             confirm_titles[n], *assist_sections[n], need_gain, ASSIST_CONFIRM[n][2])
-    learned18 = [r for r in learned if r["seed"] in CONFIRM18_SEEDS]
-    base18 = any(r["config"] == "baseline" for r in learned18)  # stage learned18_baseline, run after it shipped
-    rows, ok = candidate_verdict(  # candidate 18: candidate 17's configuration, DESIGN15's rule, fresh blocks
-        [r for r in records if r["seed"] in CONFIRM9_SEEDS or r["scene"] != "libero_spatial"],
-        learned18, range(0, 50), tuple(CONFIRM18_BACKBONES), LIFT_CONFIRM18,
-        CANDIDATE_17, CANDIDATE_16, "candidate 18", True, learned_baseline=base18)
-    if rows:
-        verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
-        lines += ["", f"## 3q. Candidate 18 (candidate 17's configuration, `{CANDIDATE_17}`, under DESIGN15's rule "
-                      "against candidate 16, written after candidate 17's confirmation was seen), blocks no decision "
-                      f"looked at: the failure experts on init states 35-39 with fresh draws, seed + {FRESH_DRAWS_18}; "
-                      f"the learned ACTs on init states {CONFIRM18_SEEDS.start}-{CONFIRM18_SEEDS.stop - 1} (candidate "
-                      + ("16 and 17; their baseline there ran after it shipped, stage learned18_baseline" if base18 else
-                         "16 and 17 only: no baseline there") + f"); Lift / Fetch {LIFT_CONFIRM18}-{LIFT_CONFIRM18 + 19}: "
-                      f"{verdict} the rule written before it ran (eval/efficacy.py DESIGN18: pooled over the learned "
-                      f"ACTs an interval above 0 against candidate 16, `{CANDIDATE_16}` here; no backbone losing more "
-                      "than 1 pair net against it; Lift / Fetch within 1 of 20 of it)\n", *PAIRED_HEAD, *rows]
+    lines += _fresh_block_section(
+        records, learned, CONFIRM18_SEEDS, CONFIRM18_BACKBONES, LIFT_CONFIRM18, CANDIDATE_17, CANDIDATE_16, 18,
+        f"3q. Candidate 18 (candidate 17's configuration, `{CANDIDATE_17}`, under DESIGN15's rule against candidate "
+        "16, written after candidate 17's confirmation was seen)", FRESH_DRAWS_18, "16 and 17",
+        f"DESIGN18: pooled over the learned ACTs an interval above 0 against candidate 16, `{CANDIDATE_16}` here; no "
+        "backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it")
     cand, ref, _, need_gain = ASSIST_CANDIDATES[19]
-    lines += _candidate_sections(
+    lines += _candidate_sections(  # its design seeds only: it failed there, so its confirmation is candidate 20's
         records, learned, cand, ref, "candidate 19", ASSIST_CONFIRM[19][0], ASSIST_CONFIRM[19][1],
-        confirm_titles[19], *assist_sections[19], need_gain, ASSIST_CONFIRM[19][2])
+        confirm_titles[19], *assist_sections[19], need_gain, ASSIST_CONFIRM[19][2], confirmation=False)
+    lines += _fresh_block_section(
+        records, learned, CONFIRM19_SEEDS, CONFIRM19_BACKBONES, LIFT_CONFIRM19, CANDIDATE_19, CANDIDATE_17, 20,
+        f"3s. Candidate 20 (candidate 19's configuration, `{CANDIDATE_19}`, under DESIGN15's rule against candidate "
+        "17, written after candidate 19's design seeds were seen)", FRESH_DRAWS_19, "17 and 19",
+        f"DESIGN20: pooled over the learned ACTs an interval above 0 against candidate 17, `{CANDIDATE_17}` here; no "
+        "backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it")
     lift = (_lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM) + _lift_rows(records, LIFT_CONFIRM18)
             + _lift_rows(records, LIFT_CONFIRM19))
     if lift:

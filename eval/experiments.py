@@ -661,14 +661,15 @@ EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3
                    "learned12_confirm,design13,learned13,confirm13,learned13_confirm,design14,learned14,confirm14,"
                    "learned14_confirm,design15,learned15,confirm15,learned15_confirm,design16,learned16,confirm16,learned16_confirm,"
                    "design17,learned17,confirm17,learned17_confirm,confirm18,learned18_confirm,learned18_baseline,"
-                   "design19,learned19,confirm19,learned19_confirm")
+                   "design19,learned19,confirm19,learned19_confirm,confirm20,learned20_confirm")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
                   "learned10", "learned10_confirm", "learned11", "learned11_confirm", "learned12",
                   "learned12_confirm", "learned13", "learned13_confirm", "learned14", "learned14_confirm",
                   "learned15", "learned15_confirm", "learned16", "learned16_confirm", "learned17", "learned17_confirm",
-                  "learned18_confirm", "learned18_baseline", "learned19", "learned19_confirm"}
+                  "learned18_confirm", "learned18_baseline", "learned19", "learned19_confirm",
+                  "learned20_confirm"}
 LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,act_chunk_mid2,"
            "diffusion_chunk")
 
@@ -769,12 +770,16 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
     if "confirm18" in stages:  # init states 35-39, fresh failure draws seed + 5000
         units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM18_BACKBONES[b]) for name, cfg in ef.DESIGN18.items()
                   for b in ef.CONFIRM18_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
+    if "confirm20" in stages:  # init states 35-39, fresh failure draws seed + 6000
+        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM19_BACKBONES[b]) for name, cfg in ef.DESIGN20.items()
+                  for b in ef.CONFIRM19_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
     lift_stages = {"lift": ((ef.LIFT_DESIGN, ef.LIFT_CONFIRM), {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}),
                    "design7": ((ef.LIFT_DESIGN,), ef.DESIGN7), "confirm7": ((ef.LIFT_CONFIRM,), ef.CONFIRM7),
                    "design9": ((ef.LIFT_DESIGN,), ef.DESIGN9), "design10": ((ef.LIFT_DESIGN,), ef.DESIGN10),
                    "confirm10": ((ef.LIFT_CONFIRM,), ef.DESIGN10), "design12": ((ef.LIFT_DESIGN,), ef.DESIGN12),
                    "confirm12": ((ef.LIFT_CONFIRM,), ef.DESIGN12), "design13": ((ef.LIFT_DESIGN,), ef.DESIGN13),
                    "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14), "confirm18": ((ef.LIFT_CONFIRM18,), ef.DESIGN18),
+                   "confirm20": ((ef.LIFT_CONFIRM19,), ef.DESIGN20),
                    **{f"{stage}{n}": ((first,), configs) for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items()
                       for stage, first in (("design", ef.LIFT_DESIGN), ("confirm", ef.ASSIST_CONFIRM[n][2]))}}
     for n in ef.LOWPASS_CANDIDATES:
@@ -853,6 +858,8 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
         blocks.append((ef.CONFIRM18_SEEDS, names, ef.LEARNED18))
     if "learned18_baseline" in stages:  # no correction there, run after candidate 18 shipped
         blocks.append((ef.CONFIRM18_SEEDS, names, ef.LEARNED18_BASELINE))
+    if "learned20_confirm" in stages:  # candidate 20 (candidate 19's configuration) and 17 on init states 20-24
+        blocks.append((ef.CONFIRM19_SEEDS, names, ef.LEARNED20))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],

@@ -76,3 +76,35 @@ def test_shipped_jerk_is_split_by_what_the_pair_did():
     # all 50: (10 x 3 + 40 x 1) / 50 = 1.4; both 25 at x1; turned 10 at x3; neither 15 at x1; none lost
     assert row == "| expert_faulty | 0-4 | x1.40 (50) | x1.00 (25) | x3.00 (10) | x1.00 (15) | - (0) |"
     assert ef._shipped_jerk_lines(recs[:-2], []) == []  # 49 pairs: no complete cell, no section
+
+
+def test_design19s_rule_asks_more_learned_pairs_won_than_lost_and_no_expert_down_two():
+    """candidate_verdict with need_gain "learned" (DESIGN19): pooled over the learned ACTs strictly more
+    pairs won than lost against the reference; any backbone 2 pairs net down fails it."""
+    cand, ref = ef.CANDIDATE_19, ef.CANDIDATE_17
+
+    def block(learned_won: int, learned_lost: int, expert_lost: int):
+        recs, learned = [], []
+        for t in range(10):
+            for s in ef.DESIGN_SEEDS:
+                k = t * 5 + s  # pair number, 0-49
+                for config in ("baseline", ref, cand):
+                    hurt = config == cand and k < expert_lost
+                    recs.append({"backbone": "expert_clean", "config": config, "task_id": t, "seed": s,
+                                 "scene": "libero_spatial", "success": not hurt, "mean_jerk": 1.0})
+                    ok = (config == cand) if k < learned_won else (config != cand) if k < learned_won + learned_lost \
+                        else False
+                    learned.append({"backbone": "act_single", "config": config, "task_id": t, "seed": s,
+                                    "scene": "libero_spatial", "success": ok, "mean_jerk": 1.0})
+        for cell in ("lift sigma=0.00", "lift sigma=0.40", "fetch sigma=0.00", "fetch sigma=0.40"):
+            for seed in range(ef.LIFT_DESIGN, ef.LIFT_DESIGN + 20):
+                recs += [{"backbone": cell, "config": c, "task_id": 0, "seed": seed, "scene": "lift",
+                          "success": True, "mean_jerk": 1.0} for c in ("baseline", ref, cand)]
+        return ef.candidate_verdict(recs, learned, ef.DESIGN_SEEDS, ("expert_clean",), ef.LIFT_DESIGN, cand, ref,
+                                    "candidate 19", "learned")[1]
+
+    assert block(1, 0, 0)  # one learned pair won, none lost
+    assert not block(0, 0, 0)  # no gain: not enough for this rule (DESIGN16's would pass it)
+    assert not block(2, 2, 0)
+    assert block(3, 1, 1)  # an expert 1 pair down is within the rule
+    assert not block(3, 0, 2)  # 2 pairs down on an expert: fails (b), as candidate 19's jitter expert did
