@@ -559,6 +559,9 @@ LIFT_CONFIRM19 = 140
 # every Lift / Fetch cell succeeds at most 1 of 20 fewer times than candidate 17.
 DESIGN20 = DESIGN19
 LEARNED20 = {name: COMPARED[name] for name in (CANDIDATE_17, CANDIDATE_19)}
+# The learned ACTs' baseline on init states 20-24 (stage learned20_baseline), run after candidate 20's
+# verdict: its configuration against no correction there. Nothing is chosen from it; section 3s shows it.
+LEARNED20_BASELINE = LEARNED18_BASELINE
 # the assist candidates under DESIGN10's rule (or DESIGN16's, 17's, 19's): n -> (the candidate, its
 # reference, its configurations, need_gain: a pooled interval above 0 over the learned ACTs (True), no
 # net loss there (False), more pairs won than lost there ("learned"), or no net loss there and more

@@ -661,7 +661,7 @@ EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3
                    "learned12_confirm,design13,learned13,confirm13,learned13_confirm,design14,learned14,confirm14,"
                    "learned14_confirm,design15,learned15,confirm15,learned15_confirm,design16,learned16,confirm16,learned16_confirm,"
                    "design17,learned17,confirm17,learned17_confirm,confirm18,learned18_confirm,learned18_baseline,"
-                   "design19,learned19,confirm19,learned19_confirm,confirm20,learned20_confirm")
+                   "design19,learned19,confirm19,learned19_confirm,confirm20,learned20_confirm,learned20_baseline")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
@@ -669,7 +669,7 @@ LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_co
                   "learned12_confirm", "learned13", "learned13_confirm", "learned14", "learned14_confirm",
                   "learned15", "learned15_confirm", "learned16", "learned16_confirm", "learned17", "learned17_confirm",
                   "learned18_confirm", "learned18_baseline", "learned19", "learned19_confirm",
-                  "learned20_confirm"}
+                  "learned20_confirm", "learned20_baseline"}
 LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,act_chunk_mid2,"
            "diffusion_chunk")
 
@@ -860,6 +860,8 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
         blocks.append((ef.CONFIRM18_SEEDS, names, ef.LEARNED18_BASELINE))
     if "learned20_confirm" in stages:  # candidate 20 (candidate 19's configuration) and 17 on init states 20-24
         blocks.append((ef.CONFIRM19_SEEDS, names, ef.LEARNED20))
+    if "learned20_baseline" in stages:  # no correction there, run after candidate 20's verdict
+        blocks.append((ef.CONFIRM19_SEEDS, names, ef.LEARNED20_BASELINE))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
