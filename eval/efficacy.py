@@ -557,6 +557,10 @@ LIFT_CONFIRM19 = 140
 # (a) pooled over the learned ACTs its paired difference against candidate 17 has a 95 % interval
 # above 0, (b) no backbone, expert or learned, loses more than 1 pair net against candidate 17, and (c)
 # every Lift / Fetch cell succeeds at most 1 of 20 fewer times than candidate 17.
+# Outcome: it failed (a): pooled over the learned ACTs on init states 20-24 +0.9 pp [-0.4, +2.1] against
+# candidate 17 (4 / 1: act_single_weak 3 / 1, act_single_mid 1 / 0, every other pair the same); the
+# experts on 35-39 with seed + 6000 draws within one pair (jitter 1 / 1, the others the same pairs);
+# Lift / Fetch 140-159 the same successes. Not shipped (section 3s; docs/method.md "Candidate 20").
 DESIGN20 = DESIGN19
 LEARNED20 = {name: COMPARED[name] for name in (CANDIDATE_17, CANDIDATE_19)}
 # The learned ACTs' baseline on init states 20-24 (stage learned20_baseline), run after candidate 20's
