@@ -1022,11 +1022,11 @@ def _fresh_block_section(records, learned, learned_seeds: range, backbones: dict
     if not rows:
         return []
     verdict = {None: "incomplete (a cell is missing)", True: "passes", False: "fails"}[ok]
+    seeds = f"{learned_seeds.start}-{learned_seeds.stop - 1}"
+    ran += f"; their baseline there ran after the verdict, stage learned{n}_baseline" if base else " only: no baseline there"
     return ["", f"## {heading}, blocks no decision looked at: the failure experts on init states 35-39 with fresh "
-                f"draws, seed + {draws}; the learned ACTs on init states {learned_seeds.start}-{learned_seeds.stop - 1} "
-                f"(candidate " + (f"{ran}; their baseline there ran after the verdict, stage learned{n}_baseline" if base
-                                  else f"{ran} only: no baseline there")
-                + f"); Lift / Fetch {lift_first}-{lift_first + 19}: {verdict} the rule written before it ran "
+                f"draws, seed + {draws}; the learned ACTs on init states {seeds} (candidate {ran}); Lift / Fetch "
+                f"{lift_first}-{lift_first + 19}: {verdict} the rule written before it ran "
                 f"(eval/efficacy.py {rule})\n", *PAIRED_HEAD, *rows]
 
 

@@ -147,6 +147,12 @@ def efficacy_table() -> list[str]:
     if not recs:
         return []
     lines = []
+    lines += _confirmation_table(recs, ef, ef.CANDIDATE_17, ef.CANDIDATE_19, ef.CONFIRM19_BACKBONES, ef.FRESH_DRAWS_19,
+                                 "3s", "the shipped default's (`{cand}`) newest blocks, candidate 20's",
+                                 "candidate 20, not shipped",
+                                 looked="no decision looked at these episodes before candidate 20's rule was written (the "
+                                 "learned ACTs' baseline there ran after its verdict; nothing was chosen from it)",
+                                 learned_seeds="20-24")
     lines += _confirmation_table(recs, ef, ef.CANDIDATE_17, ef.CANDIDATE_16, ef.CONFIRM18_BACKBONES, ef.FRESH_DRAWS_18,
                                  "3q", "the shipped default's (candidate 17's configuration, `{cand}`: candidate 16 + "
                                  "the rim guide, shipped as candidate 18)", "candidate 16, shipped until 2026-11-25",
