@@ -774,10 +774,10 @@ def _shipped_cells(records, learned):
     blocks = [(b, name, seeds, records, lambda r: clean.get((r["task_id"], r["seed"]), False))
               for b in BACKBONES
               for name, seeds in ((b, DESIGN_SEEDS), (f"{b}+{FRESH_DRAWS_14}", CONFIRM7_SEEDS),
-                                  (f"{b}+{FRESH_DRAWS_18}", CONFIRM7_SEEDS))]
+                                  (f"{b}+{FRESH_DRAWS_18}", CONFIRM7_SEEDS), (f"{b}+{FRESH_DRAWS_19}", CONFIRM7_SEEDS))]
     blocks += [(b, b, seeds, learned, lambda r: r["task_id"] in solved)
                for b in dict.fromkeys(r["backbone"] for r in learned)
-               for seeds in (DESIGN_SEEDS, CONFIRM11_SEEDS, CONFIRM18_SEEDS)]
+               for seeds in (DESIGN_SEEDS, CONFIRM11_SEEDS, CONFIRM18_SEEDS, CONFIRM19_SEEDS)]
     for b, name, seeds, recs, reachable in blocks:
         if b == "expert_clean" and name != b:
             name, seeds = b, CONFIRM7_SEEDS  # the clean expert has no draws: its one block on 35-39
