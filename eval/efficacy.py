@@ -566,6 +566,14 @@ LEARNED20 = {name: COMPARED[name] for name in (CANDIDATE_17, CANDIDATE_19)}
 # The learned ACTs' baseline on init states 20-24 (stage learned20_baseline), run after candidate 20's
 # verdict: its configuration against no correction there. Nothing is chosen from it; section 3s shows it.
 LEARNED20_BASELINE = LEARNED18_BASELINE
+# candidates 18 and 20 (an earlier candidate's configuration tested on fresh blocks): n -> (report section, the
+# configuration, its reference, the experts' backbones on 35-39, their draws, the learned ACTs' init
+# states, the first Lift / Fetch seed)
+FRESH_BLOCKS = {18: ("3q", CANDIDATE_17, CANDIDATE_16, CONFIRM18_BACKBONES, FRESH_DRAWS_18, CONFIRM18_SEEDS,
+                     LIFT_CONFIRM18),
+                20: ("3s", CANDIDATE_19, CANDIDATE_17, CONFIRM19_BACKBONES, FRESH_DRAWS_19, CONFIRM19_SEEDS,
+                     LIFT_CONFIRM19)}
+CANDIDATE_NUMBERS = {16: CANDIDATE_16, 17: CANDIDATE_17, 19: CANDIDATE_19}  # the configurations FRESH_BLOCKS names
 # the assist candidates under DESIGN10's rule (or DESIGN16's, 17's, 19's): n -> (the candidate, its
 # reference, its configurations, need_gain: a pooled interval above 0 over the learned ACTs (True), no
 # net loss there (False), more pairs won than lost there ("learned"), or no net loss there and more
@@ -1008,12 +1016,19 @@ def _candidate_sections(records, learned, cand: str, ref: str, label: str, confi
     return lines
 
 
-def _fresh_block_section(records, learned, learned_seeds: range, backbones: dict, lift_first: int, cand: str,
-                         ref: str, n: int, heading: str, draws: int, ran: str, rule: str) -> list[str]:
-    """A candidate tested on blocks no decision looked at (candidates 18 and 20): the failure experts
-    `backbones` on init states 35-39, the learned ACTs on `learned_seeds` (`ran`: the configurations
-    they ran there; their baseline, where it ran, stage learned<n>_baseline, after the verdict), Lift /
-    Fetch from `lift_first`; its rows and the rule's verdict (DESIGN15's, against `ref`)."""
+def _fresh_block_section(records, learned, n: int, after: str) -> list[str]:
+    """Section 3q or 3s: candidate n (18, 20: an earlier candidate's configuration under DESIGN15's rule,
+    written after `after`) on blocks no decision looked at (FRESH_BLOCKS[n]: the failure experts on init
+    states 35-39 with fresh draws, the learned ACTs' init states, the first Lift / Fetch seed); its rows
+    and the rule's verdict against its reference (the learned ACTs' baseline there, where it ran, stage
+    learned<n>_baseline, after the verdict)."""
+    section, cand, ref, backbones, draws, learned_seeds, lift_first = FRESH_BLOCKS[n]
+    label = {c: k for k, c in CANDIDATE_NUMBERS.items()}
+    heading = (f"{section}. Candidate {n} (candidate {label[cand]}'s configuration, `{cand}`, under DESIGN15's rule "
+               f"against candidate {label[ref]}, written after {after})")
+    ran = f"{label[ref]} and {label[cand]}"
+    rule = (f"DESIGN{n}: pooled over the learned ACTs an interval above 0 against candidate {label[ref]}, `{ref}` "
+            "here; no backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it")
     lrecs = [r for r in learned if r["seed"] in learned_seeds]
     base = any(r["config"] == "baseline" for r in lrecs)
     rows, ok = candidate_verdict(
@@ -1202,22 +1217,12 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
         lines += _candidate_sections(
             records, learned, cand, ref, f"candidate {n}", ASSIST_CONFIRM[n][0], ASSIST_CONFIRM[n][1],
             confirm_titles[n], *assist_sections[n], need_gain, ASSIST_CONFIRM[n][2])
-    lines += _fresh_block_section(
-        records, learned, CONFIRM18_SEEDS, CONFIRM18_BACKBONES, LIFT_CONFIRM18, CANDIDATE_17, CANDIDATE_16, 18,
-        f"3q. Candidate 18 (candidate 17's configuration, `{CANDIDATE_17}`, under DESIGN15's rule against candidate "
-        "16, written after candidate 17's confirmation was seen)", FRESH_DRAWS_18, "16 and 17",
-        f"DESIGN18: pooled over the learned ACTs an interval above 0 against candidate 16, `{CANDIDATE_16}` here; no "
-        "backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it")
+    lines += _fresh_block_section(records, learned, 18, "candidate 17's confirmation was seen")
     cand, ref, _, need_gain = ASSIST_CANDIDATES[19]
     lines += _candidate_sections(  # its design seeds only: it failed there, so its confirmation is candidate 20's
         records, learned, cand, ref, "candidate 19", ASSIST_CONFIRM[19][0], ASSIST_CONFIRM[19][1],
         confirm_titles[19], *assist_sections[19], need_gain, ASSIST_CONFIRM[19][2], confirmation=False)
-    lines += _fresh_block_section(
-        records, learned, CONFIRM19_SEEDS, CONFIRM19_BACKBONES, LIFT_CONFIRM19, CANDIDATE_19, CANDIDATE_17, 20,
-        f"3s. Candidate 20 (candidate 19's configuration, `{CANDIDATE_19}`, under DESIGN15's rule against candidate "
-        "17, written after candidate 19's design seeds were seen)", FRESH_DRAWS_19, "17 and 19",
-        f"DESIGN20: pooled over the learned ACTs an interval above 0 against candidate 17, `{CANDIDATE_17}` here; no "
-        "backbone losing more than 1 pair net against it; Lift / Fetch within 1 of 20 of it")
+    lines += _fresh_block_section(records, learned, 20, "candidate 19's design seeds were seen")
     lift = (_lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM) + _lift_rows(records, LIFT_CONFIRM18)
             + _lift_rows(records, LIFT_CONFIRM19))
     if lift:

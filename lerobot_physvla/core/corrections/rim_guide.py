@@ -50,12 +50,8 @@ def rim_guide(a_raw, a_phys, idx, geo, p, mem, commit):
     """x, y commanded toward the point rim_guide_m from the object's origin on the line through the
     hand, for a hand settled beside the object, outside delta_grasp (the approach phase); z and the
     gripper untouched. Called in the approach phase only; rim_track keeps the hand's history."""
-    dx, dy = geo[EEF] - geo[OBJ], geo[EEF + 1] - geo[OBJ + 1]
-    rho = (dx * dx + dy * dy) ** 0.5
-    g = idx[GRIPPER]
-    closing = g >= 0 and a_raw[g] * p[GRIPPER_OPEN] < 0.0
-    beside = 1e-9 < rho < RIM_REACH_M and geo[EEF + 2] - geo[OBJ + 2] < RIM_HEIGHT_M and not closing
-    on = beside and (mem[RIM_ON] > 0.5 or _settled(geo, mem))
+    dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
+    on = low_open and 1e-9 < rho < RIM_REACH_M and (mem[RIM_ON] > 0.5 or _settled(geo, mem))
     if on:
         _pull(a_phys, idx, geo, p, dx, dy, rho)
     if commit:
@@ -68,16 +64,22 @@ def rim_guide_grasp(a_raw, a_phys, idx, geo, p, mem, commit):
     the hand is further than RIM_ARRIVE_M outside it, low (RIM_HEIGHT_M) and open; x, y only."""
     if mem[RIM_ON] < 0.5:
         return
-    dx, dy = geo[EEF] - geo[OBJ], geo[EEF + 1] - geo[OBJ + 1]
-    rho = (dx * dx + dy * dy) ** 0.5
-    g = idx[GRIPPER]
-    closing = g >= 0 and a_raw[g] * p[GRIPPER_OPEN] < 0.0
-    on = (p[RIM_GUIDE_M] + RIM_ARRIVE_M < rho and geo[EEF + 2] - geo[OBJ + 2] < RIM_HEIGHT_M
-          and not closing)
+    dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
+    on = low_open and p[RIM_GUIDE_M] + RIM_ARRIVE_M < rho
     if on:
         _pull(a_phys, idx, geo, p, dx, dy, rho)
     if commit:
         mem[RIM_ON] = 1.0 if on else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _where(a_raw, idx, geo, p):
+    """The hand from the object's origin (dx, dy, their length rho; metres) and whether it is low
+    (under RIM_HEIGHT_M above the origin) with the policy not commanding closed."""
+    dx, dy = geo[EEF] - geo[OBJ], geo[EEF + 1] - geo[OBJ + 1]
+    g = idx[GRIPPER]
+    closing = g >= 0 and a_raw[g] * p[GRIPPER_OPEN] < 0.0
+    return dx, dy, (dx * dx + dy * dy) ** 0.5, geo[EEF + 2] - geo[OBJ + 2] < RIM_HEIGHT_M and not closing
 
 
 @njit(cache=True, error_model="numpy")
