@@ -563,9 +563,8 @@ LIFT_CONFIRM19 = 140
 # Lift / Fetch 140-159 the same successes. Not shipped (section 3s; docs/method.md "Candidate 20").
 DESIGN20 = DESIGN19
 LEARNED20 = {name: COMPARED[name] for name in (CANDIDATE_17, CANDIDATE_19)}
-# The learned ACTs' baseline on init states 20-24 (stage learned20_baseline), run after candidate 20's
-# verdict: its configuration against no correction there. Nothing is chosen from it; section 3s shows it.
-LEARNED20_BASELINE = LEARNED18_BASELINE
+# The learned ACTs' baseline on init states 20-24 (stage learned20_baseline, LEARNED18_BASELINE's
+# configuration), run after candidate 20's verdict. Nothing is chosen from it; section 3s shows it.
 # candidates 18 and 20 (an earlier candidate's configuration tested on fresh blocks): n -> (report section, the
 # configuration, its reference, the experts' backbones on 35-39, their draws, the learned ACTs' init
 # states, the first Lift / Fetch seed)
@@ -574,6 +573,9 @@ FRESH_BLOCKS = {18: ("3q", CANDIDATE_17, CANDIDATE_16, CONFIRM18_BACKBONES, FRES
                 20: ("3s", CANDIDATE_19, CANDIDATE_17, CONFIRM19_BACKBONES, FRESH_DRAWS_19, CONFIRM19_SEEDS,
                      LIFT_CONFIRM19)}
 CANDIDATE_NUMBERS = {16: CANDIDATE_16, 17: CANDIDATE_17, 19: CANDIDATE_19}  # the configurations FRESH_BLOCKS names
+# their stages: confirm<n> (the experts and Lift / Fetch: these configurations), learned<n>_confirm (the
+# learned ACTs: these), learned<n>_baseline (the learned ACTs uncorrected, after the verdict)
+FRESH_STAGES = {18: (DESIGN18, LEARNED18), 20: (DESIGN20, LEARNED20)}
 # the assist candidates under DESIGN10's rule (or DESIGN16's, 17's, 19's): n -> (the candidate, its
 # reference, its configurations, need_gain: a pooled interval above 0 over the learned ACTs (True), no
 # net loss there (False), more pairs won than lost there ("learned"), or no net loss there and more

@@ -767,19 +767,18 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
         if f"confirm{n}" in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, fresh[b]) for name, cfg in configs.items()
                       for b in fresh for t in range(10) for s in ef.CONFIRM9_SEEDS]
-    if "confirm18" in stages:  # init states 35-39, fresh failure draws seed + 5000
-        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM18_BACKBONES[b]) for name, cfg in ef.DESIGN18.items()
-                  for b in ef.CONFIRM18_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
-    if "confirm20" in stages:  # init states 35-39, fresh failure draws seed + 6000
-        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.CONFIRM19_BACKBONES[b]) for name, cfg in ef.DESIGN20.items()
-                  for b in ef.CONFIRM19_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
+    for n, (configs, _) in ef.FRESH_STAGES.items():  # init states 35-39, fresh draws (18: seed + 5000, 20: + 6000)
+        fresh = ef.FRESH_BLOCKS[n][3]
+        if f"confirm{n}" in stages:
+            units += [Unit(b, name, cfg.to_dict(), t, s, 1, fresh[b]) for name, cfg in configs.items()
+                      for b in fresh for t in range(10) for s in ef.CONFIRM9_SEEDS]
     lift_stages = {"lift": ((ef.LIFT_DESIGN, ef.LIFT_CONFIRM), {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}),
                    "design7": ((ef.LIFT_DESIGN,), ef.DESIGN7), "confirm7": ((ef.LIFT_CONFIRM,), ef.CONFIRM7),
                    "design9": ((ef.LIFT_DESIGN,), ef.DESIGN9), "design10": ((ef.LIFT_DESIGN,), ef.DESIGN10),
                    "confirm10": ((ef.LIFT_CONFIRM,), ef.DESIGN10), "design12": ((ef.LIFT_DESIGN,), ef.DESIGN12),
                    "confirm12": ((ef.LIFT_CONFIRM,), ef.DESIGN12), "design13": ((ef.LIFT_DESIGN,), ef.DESIGN13),
-                   "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14), "confirm18": ((ef.LIFT_CONFIRM18,), ef.DESIGN18),
-                   "confirm20": ((ef.LIFT_CONFIRM19,), ef.DESIGN20),
+                   "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14),
+                   **{f"confirm{n}": ((ef.FRESH_BLOCKS[n][6],), configs) for n, (configs, _) in ef.FRESH_STAGES.items()},
                    **{f"{stage}{n}": ((first,), configs) for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items()
                       for stage, first in (("design", ef.LIFT_DESIGN), ("confirm", ef.ASSIST_CONFIRM[n][2]))}}
     for n in ef.LOWPASS_CANDIDATES:
@@ -854,14 +853,12 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
             blocks.append((ef.DESIGN_SEEDS, names, configs))
         if f"learned{n}_confirm" in stages:  # and on their confirmation block (15-17: 10-14, 19: 20-24)
             blocks.append((ef.ASSIST_CONFIRM[n][1], names, configs))
-    if "learned18_confirm" in stages:  # candidate 18 (candidate 17's configuration) and 16 on init states 15-19
-        blocks.append((ef.CONFIRM18_SEEDS, names, ef.LEARNED18))
-    if "learned18_baseline" in stages:  # no correction there, run after candidate 18 shipped
-        blocks.append((ef.CONFIRM18_SEEDS, names, ef.LEARNED18_BASELINE))
-    if "learned20_confirm" in stages:  # candidate 20 (candidate 19's configuration) and 17 on init states 20-24
-        blocks.append((ef.CONFIRM19_SEEDS, names, ef.LEARNED20))
-    if "learned20_baseline" in stages:  # no correction there, run after candidate 20's verdict
-        blocks.append((ef.CONFIRM19_SEEDS, names, ef.LEARNED20_BASELINE))
+    for n, (_, configs) in ef.FRESH_STAGES.items():  # candidates 18 and 20 and their references on fresh init
+        seeds = ef.FRESH_BLOCKS[n][5]  # states (18: 15-19, 20: 20-24); their baseline there after the verdict
+        if f"learned{n}_confirm" in stages:
+            blocks.append((seeds, names, configs))
+        if f"learned{n}_baseline" in stages:
+            blocks.append((seeds, names, ef.LEARNED18_BASELINE))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],
