@@ -661,7 +661,8 @@ EFFICACY_STAGES = ("ablation,diagnosis,design,confirm,confirm2,confirm3,confirm3
                    "learned12_confirm,design13,learned13,confirm13,learned13_confirm,design14,learned14,confirm14,"
                    "learned14_confirm,design15,learned15,confirm15,learned15_confirm,design16,learned16,confirm16,learned16_confirm,"
                    "design17,learned17,confirm17,learned17_confirm,confirm18,learned18_confirm,learned18_baseline,"
-                   "design19,learned19,confirm19,learned19_confirm,confirm20,learned20_confirm,learned20_baseline,smooth,learned_smooth")
+                   "design19,learned19,confirm19,learned19_confirm,confirm20,learned20_confirm,learned20_baseline,smooth,learned_smooth,paper_modes,"
+                   "learned_paper_modes")
 EXPERTS = "expert_clean,expert_jitter,expert_faulty,expert_place_bias"
 # the efficacy stages whose units run learned backbones (_learned_units)
 LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_confirm", "learned9", "learned9_confirm",
@@ -669,7 +670,8 @@ LEARNED_STAGES = {"learned", "learned_confirm", "learned_phys", "learned_phys_co
                   "learned12_confirm", "learned13", "learned13_confirm", "learned14", "learned14_confirm",
                   "learned15", "learned15_confirm", "learned16", "learned16_confirm", "learned17", "learned17_confirm",
                   "learned18_confirm", "learned18_baseline", "learned19", "learned19_confirm",
-                  "learned20_confirm", "learned20_baseline", "learned_smooth"}
+                  "learned20_confirm", "learned20_baseline", "learned_smooth",
+                  "learned_paper_modes"}
 LEARNED = ("act_single,act_single_weak,act_single_mid,act_chunk,act_chunk_weak,act_chunk_mid,act_chunk_mid2,"
            "diffusion_chunk")
 
@@ -772,15 +774,17 @@ def _efficacy_units(stages: list[str], experts: list[str]) -> list:
         if f"confirm{n}" in stages:
             units += [Unit(b, name, cfg.to_dict(), t, s, 1, fresh[b]) for name, cfg in configs.items()
                       for b in fresh for t in range(10) for s in ef.CONFIRM9_SEEDS]
-    if "smooth" in stages:  # the smooth preset: init states 35-39, seed + 6000 draws (ef.SMOOTH_BACKBONES)
-        units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.SMOOTH_BACKBONES[b]) for name, cfg in ef.SMOOTH_STAGE.items()
-                  for b in ef.SMOOTH_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
+    for stage, configs in (("smooth", ef.SMOOTH_STAGE), ("paper_modes", ef.PAPER_MODES)):
+        if stage in stages:  # init states 35-39, seed + 6000 draws (ef.SMOOTH_BACKBONES)
+            units += [Unit(b, name, cfg.to_dict(), t, s, 1, ef.SMOOTH_BACKBONES[b]) for name, cfg in configs.items()
+                      for b in ef.SMOOTH_BACKBONES for t in range(10) for s in ef.CONFIRM9_SEEDS]
     lift_stages = {"lift": ((ef.LIFT_DESIGN, ef.LIFT_CONFIRM), {k: ef.COMPARED[k] for k in ef.LIFT_CONFIGS}),
                    "design7": ((ef.LIFT_DESIGN,), ef.DESIGN7), "confirm7": ((ef.LIFT_CONFIRM,), ef.CONFIRM7),
                    "design9": ((ef.LIFT_DESIGN,), ef.DESIGN9), "design10": ((ef.LIFT_DESIGN,), ef.DESIGN10),
                    "confirm10": ((ef.LIFT_CONFIRM,), ef.DESIGN10), "design12": ((ef.LIFT_DESIGN,), ef.DESIGN12),
                    "confirm12": ((ef.LIFT_CONFIRM,), ef.DESIGN12), "design13": ((ef.LIFT_DESIGN,), ef.DESIGN13),
                    "design14": ((ef.LIFT_DESIGN,), ef.DESIGN14), "smooth": ((ef.SMOOTH_LIFT,), ef.SMOOTH_STAGE),
+                   "paper_modes": ((ef.SMOOTH_LIFT,), ef.PAPER_MODES),
                    **{f"confirm{n}": ((ef.FRESH_BLOCKS[n][6],), configs) for n, (configs, _) in ef.FRESH_STAGES.items()},
                    **{f"{stage}{n}": ((first,), configs) for n, (_, _, configs, _) in ef.ASSIST_CANDIDATES.items()
                       for stage, first in (("design", ef.LIFT_DESIGN), ("confirm", ef.ASSIST_CONFIRM[n][2]))}}
@@ -862,8 +866,9 @@ def _learned_units(stages: list[str], names: list[str], ckpts: dict[str, Path]) 
             blocks.append((seeds, names, configs))
         if f"learned{n}_baseline" in stages:
             blocks.append((seeds, names, ef.LEARNED18_BASELINE))
-    if "learned_smooth" in stages:  # the smooth preset on the learned ACTs, init states 20-24
-        blocks.append((ef.SMOOTH_SEEDS, names, ef.SMOOTH_STAGE))
+    for stage, configs in (("learned_smooth", ef.SMOOTH_STAGE), ("learned_paper_modes", ef.PAPER_MODES)):
+        if stage in stages:  # the smooth preset, then the paper's modes, on the learned ACTs, init states 20-24
+            blocks.append((ef.SMOOTH_SEEDS, names, configs))
     if "learned_confirm" in stages:  # candidates on init states 5-9 (on the backbones LEARNED_CONFIRM names)
         for name, only in ef.LEARNED_CONFIRM.items():
             blocks.append((ef.CONFIRM_SEEDS, [n for n in names if only is None or n in only],

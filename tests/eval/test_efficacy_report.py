@@ -108,3 +108,89 @@ def test_design19s_rule_asks_more_learned_pairs_won_than_lost_and_no_expert_down
     assert not block(2, 2, 0)
     assert block(3, 1, 1)  # an expert 1 pair down is within the rule
     assert not block(3, 0, 2)  # 2 pairs down on an expert: fails (b), as candidate 19's jitter expert did
+
+
+def _lift_cells(first: int, jerk: dict, success: dict | None = None) -> list[dict]:
+    """Lift / Fetch records of one block: jerk[(config, sigma)] per cell, every trial a success unless
+    success[(config, cell)] says how many of the 20 succeed."""
+    recs = []
+    for (config, sg), j in jerk.items():
+        for sim in ("lift", "fetch"):
+            cell = f"{sim} sigma={sg}"
+            k = (success or {}).get((config, cell), 20)
+            recs += [{"backbone": cell, "config": config, "task_id": 0, "seed": first + i, "success": i < k,
+                      "scene": "lift" if sim == "lift" else "fetch_pick_place", "mean_jerk": j} for i in range(20)]
+    return recs
+
+
+def test_lift_ratio_is_baselines_degradation_over_this_ones():
+    recs = _lift_cells(100, {("baseline", "0.00"): 2.0, ("baseline", "0.40"): 8.0,  # +300 %
+                             (ef.SHIPPED, "0.00"): 2.0, (ef.SHIPPED, "0.40"): 4.0})  # +100 %
+    assert ef.lift_ratio(recs, 100, "lift", ef.SHIPPED) == 3.0
+    assert ef.lift_ratio(recs, 100, "fetch", "baseline") == 1.0
+    assert str(ef.lift_ratio(recs, 120, "lift", ef.SHIPPED)) == "nan"  # no such block
+    assert str(ef.lift_ratio(recs, 100, "lift", ef.SMOOTH)) == "nan"  # not run there
+
+
+def _smooth_block(jitter_jerk: float, lost: dict, lift_jerk: float, lift_lost: int = 0):
+    """The smooth preset's blocks: every pair succeeds under baseline and the shipped default; under
+    smooth `lost[backbone]` pairs fail; the jitter expert's jerk under smooth is jitter_jerk x baseline's;
+    Lift / Fetch at sigma 0.40 degrade +300 % uncorrected and under the default, lift_jerk under smooth."""
+    recs, learned = [], []
+    names = [*ef.SMOOTH_BACKBONES, "act_single"]
+    for b in names:
+        for t in range(10):
+            for i, s in enumerate(ef.CONFIRM9_SEEDS if b != "act_single" else ef.SMOOTH_SEEDS):
+                for config in ("baseline", ef.SHIPPED, ef.SMOOTH):
+                    smooth = config == ef.SMOOTH
+                    jerk = jitter_jerk if smooth and b.startswith("expert_jitter") else 1.0
+                    (learned if b == "act_single" else recs).append(
+                        {"backbone": b, "config": config, "task_id": t, "seed": s, "scene": "libero_spatial",
+                         "success": not (smooth and t * 5 + i < lost.get(b, 0)), "mean_jerk": jerk})
+    recs += _lift_cells(ef.SMOOTH_LIFT, {(c, "0.00"): 1.0 for c in ("baseline", ef.SHIPPED, ef.SMOOTH)}
+                        | {("baseline", "0.40"): 4.0, (ef.SHIPPED, "0.40"): 4.0, (ef.SMOOTH, "0.40"): lift_jerk},
+                        {(ef.SMOOTH, "lift sigma=0.40"): 20 - lift_lost})
+    return ef.smooth_verdict(recs, learned)[1]
+
+
+def test_the_smooth_presets_rule():
+    """SMOOTH_STAGE's rule: (a) the jitter expert's jerk <= 0.5 x baseline's, (b) Lift / Fetch ratio >= 3
+    with every cell within 1 of 20 of the shipped default, (c) no backbone but the jitter expert more
+    than 1 pair net down against the shipped default; the jitter expert's own losses are the trade."""
+    jitter = next(b for b in ef.SMOOTH_BACKBONES if b.startswith("expert_jitter"))
+    assert _smooth_block(0.45, {jitter: 5}, 2.0) == {"a": True, "b": True, "c": True}  # ratio 3 / 1 = 3
+    assert _smooth_block(0.55, {}, 2.0)["a"] is False
+    assert _smooth_block(0.45, {}, 2.5)["b"] is False  # ratio 3 / 1.5 = 2
+    assert _smooth_block(0.45, {}, 2.0, lift_lost=2)["b"] is False  # Lift sigma 0.40: 18 vs 20
+    assert _smooth_block(0.45, {"act_single": 2}, 2.0)["c"] is False
+    assert _smooth_block(0.45, {"expert_clean": 1}, 2.0)["c"] is True
+
+
+def test_goal_section_says_met_out_of_reach_or_what_was_turned():
+    """Section 9: per backbone and confirmation block, the shipped default's paired gain against
+    baseline, whether +10 pp with the interval above 0 holds, and if not, section 8c's measurement:
+    out of reach (fewer reachable failures than +10 pp needs) or how many of them it turned."""
+    recs = []
+    draws = f"+{ef.FRESH_DRAWS_18}"
+    for t in range(10):
+        for i, s in enumerate(ef.CONFIRM7_SEEDS):
+            k = t * 5 + i
+            # the clean expert fails pairs 0-9 (so they are out of a corrector's reach for the others)
+            recs += [{"backbone": "expert_clean", "config": c, "task_id": t, "seed": s, "scene": "libero_spatial",
+                      "success": k >= 10, "mean_jerk": 1.0} for c in ("baseline", ef.SHIPPED)]
+            # place-bias: baseline fails 0-19, the default turns 10-19 (all reachable): +20 pp, met
+            # faulty: baseline fails 0-13, the default turns 10-13: 4 reachable, +10 pp needs 5: out of reach
+            # jitter: baseline fails 0-19, the default turns 10-11: 2 of 10 reachable turned
+            for b, fails, turned in (("expert_place_bias", 20, range(10, 20)), ("expert_faulty", 14, range(10, 14)),
+                                     ("expert_jitter", 20, range(10, 12))):
+                recs += [{"backbone": b + draws, "config": "baseline", "task_id": t, "seed": s,
+                          "scene": "libero_spatial", "success": k >= fails, "mean_jerk": 2.0},
+                         {"backbone": b + draws, "config": ef.SHIPPED, "task_id": t, "seed": s,
+                          "scene": "libero_spatial", "success": k >= fails or k in turned, "mean_jerk": 1.0}]
+    lines = ef._goal_lines(recs, [])
+    rows = {line.split(" | ")[0].lstrip("| "): line for line in lines if line.startswith("| expert_") and "35-39" in line}
+    assert "+20 pp [+9, +31] | met |" in rows["expert_place_bias"]
+    assert "not met | out of reach: +10 pp needs 5 pairs turned, the block has 4 reachable failures" in rows["expert_faulty"]
+    assert "not met | turned 2 of 10 reachable failures, +10 pp needs 5" in rows["expert_jitter"]
+    assert any("The clean expert on init states 35-39: +0 pp" in line and ": met." in line for line in lines)
+    assert any("x0.50" in line for line in lines if "seed + 5000 draws" in line)  # goal 3: jitter jerk, that block
