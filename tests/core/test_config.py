@@ -46,6 +46,10 @@ def test_presets_follow_the_paper_and_the_default_is_built_from_the_options():
     assert PRESETS["paper_alg1"].cap == 1.0 and PRESETS["paper_alg1"].mode == "phys_el"
     assert preset("paper", mode="phys") == PhysVLAConfig(mode="phys")
     assert DEFAULT_PRESET in PRESETS
+    # smooth: the default and the low-pass, nothing else changed
+    assert PRESETS["smooth"].replace(lowpass="off", lowpass_space="action", lowpass_alpha_max=0.6, lowpass_rough="ema",
+                                     lowpass_phases=PhysVLAConfig().lowpass_phases) == PRESETS["default"]
+    assert PRESETS["smooth"].lowpass_mask == (True, True, False, True)  # none while an object is carried
     with pytest.raises(ValueError, match="unknown preset"):
         preset("turbo")
 

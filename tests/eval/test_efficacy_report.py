@@ -194,3 +194,12 @@ def test_goal_section_says_met_out_of_reach_or_what_was_turned():
     assert "not met | turned 2 of 10 reachable failures, +10 pp needs 5" in rows["expert_jitter"]
     assert any("The clean expert on init states 35-39: +0 pp" in line and ": met." in line for line in lines)
     assert any("x0.50" in line for line in lines if "seed + 5000 draws" in line)  # goal 3: jitter jerk, that block
+
+
+def test_the_presets_are_the_configurations_that_were_measured():
+    """The shipped default and the smooth preset are, field for field, the configurations whose units
+    eval/results/efficacy reports under their names (SHIPPED, SMOOTH)."""
+    from lerobot_physvla.core.config import PRESETS
+
+    assert PRESETS["default"] == ef.COMPARED[ef.SHIPPED]
+    assert PRESETS["smooth"] == ef.COMPARED[ef.SMOOTH]

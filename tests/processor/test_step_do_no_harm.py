@@ -43,7 +43,7 @@ def _counted(step: PhysVLACorrectorStep) -> int:
     value=st_.sampled_from(EXTREME),
     where=st_.integers(0, 10_000),
     mode=st_.sampled_from(MODES),
-    preset=st_.sampled_from([None, "default", "paper_alg1"]),
+    preset=st_.sampled_from([None, "default", "paper_alg1", "smooth"]),
     layout=st_.sampled_from(sorted(LAYOUTS)),
     horizon=st_.sampled_from([None, 1, 5]),
     dtype=st_.sampled_from([torch.float32, torch.float64, torch.bfloat16]),
