@@ -728,10 +728,49 @@ def _plot(records, path) -> None:
         ax.set_xlabel("mean end-effector jerk (m/s^3)")
     axes[0].set_ylabel("success rate")
     handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=5)
-    fig.tight_layout(rect=(0, 0.12, 1, 1))
+    fig.legend(handles, labels, fontsize=7, loc="lower center", ncol=4)
+    fig.set_size_inches(4.2 * len(BACKBONES), 3.8 + 0.16 * (len(labels) // 4 + 1))
+    fig.tight_layout(rect=(0, 1 - 3.8 / fig.get_size_inches()[1], 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _plot_newest(records, learned, path) -> bool:
+    """Success against mean jerk per backbone on the newest blocks (section 3u's cells): one point per
+    configuration of NEWEST with a complete cell; False (nothing drawn) until two are complete."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    recs = [r for r in records if r["seed"] in CONFIRM9_SEEDS and r["scene"] == "libero_spatial"]
+    lrecs = [r for r in learned if r["seed"] in SMOOTH_SEEDS]
+    blocks = [(b, recs) for b in SMOOTH_BACKBONES] + [(b, lrecs) for b in dict.fromkeys(r["backbone"] for r in lrecs)]
+    cells = {(b, c): sel for b, rs in blocks for c in NEWEST
+             if len(sel := [r for r in rs if r["backbone"] == b and r["config"] == c]) >= FULL_CELL}
+    if len({c for _, c in cells}) < 3:
+        return False
+    cols = 6
+    fig, axes = plt.subplots(-(-len(blocks) // cols), cols, figsize=(3.1 * cols, 2.9 * -(-len(blocks) // cols) + 0.6))
+    for ax, (b, _) in zip(axes.flat, blocks):
+        for j, c in enumerate(NEWEST):
+            if (b, c) in cells:
+                sel = cells[(b, c)]
+                ax.scatter(np.mean([r["mean_jerk"] for r in sel]), np.mean([r["success"] for r in sel]), s=40,
+                           marker="os^v*D"[j], color=f"C{j}", label=c)
+        ax.set_title(b, fontsize=9)
+        ax.set_ylim(-0.03, 1.03)
+        ax.tick_params(labelsize=7)
+    for ax in list(axes.flat)[len(blocks):]:
+        ax.axis("off")
+    axes.flat[0].set_ylabel("success rate", fontsize=8)
+    axes.flat[cols].set_xlabel("mean end-effector jerk (m/s^3)", fontsize=8)
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=8, loc="lower center", ncol=len(labels))
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return True
 
 
 TAUGHT = 0.2  # a task the teacher (the clean expert, uncorrected) solves at least this often was demonstrated
@@ -1175,12 +1214,14 @@ def newest_modes_lines(records, learned, configs=NEWEST) -> list[str]:
     return [f"| backbone | baseline | {' | '.join(ran)} |", "|---|---|" + "---|" * len(ran), *rows]
 
 
-def _newest_modes_section(records, learned) -> list[str]:
+def _newest_modes_section(records, learned, out=None) -> list[str]:
     """Section 3u: baseline, temporal, both paper readings, the shipped default and the smooth preset on
-    the newest blocks, side by side."""
+    the newest blocks, side by side (and their plot, success against jerk, written into `out`)."""
     rows = newest_modes_lines(records, learned)
     if not rows:
         return []
+    if out is not None and _plot_newest(records, learned, out / "success_jerk_newest.png"):
+        rows = rows + ["", "![success vs jerk per backbone, newest blocks](success_jerk_newest.png)"]
     return ["", f"## 3u. Every mode on the newest blocks (the failure experts on init states 35-39 with seed + "
                 f"{FRESH_DRAWS_19} draws, the learned ACTs on init states {SMOOTH_SEEDS.start}-{SMOOTH_SEEDS.stop - 1}; "
                 "n = 50 pairs per cell; the paper's modes ran after every decision, stages paper_modes / "
@@ -1468,7 +1509,7 @@ def report(out, records, secs, n_units, header, write, learned=()) -> None:
         confirm_titles[19], *assist_sections[19], need_gain, ASSIST_CONFIRM[19][2], confirmation=False)
     lines += _fresh_block_section(records, learned, 20, "candidate 19's design seeds were seen")
     lines += _smooth_section(records, learned)
-    lines += _newest_modes_section(records, learned)
+    lines += _newest_modes_section(records, learned, out)
     lift = (_lift_rows(records, LIFT_DESIGN) + _lift_rows(records, LIFT_CONFIRM) + _lift_rows(records, LIFT_CONFIRM18)
             + _lift_rows(records, LIFT_CONFIRM19))
     if lift:

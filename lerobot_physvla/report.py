@@ -26,7 +26,8 @@ def corrections_by_phase(raw: np.ndarray, corrected: np.ndarray, phase: np.ndarr
     """How often and how much each correction changed the action: per phase, the frames spent in
     it, the frames whose action it changed (the gripper for the approach veto, the position
     channels otherwise) and the mean largest change on those frames, action units; and the rim
-    guide (rim_guide_m: the position channels in the approach phase)."""
+    guide (rim_guide_m: the position channels in the approach phase). Attribution is by phase and
+    channel: a low-pass acting in a phase (lowpass=adaptive, the smooth preset) counts there too."""
     raw, corrected, phase = np.asarray(raw, float), np.asarray(corrected, float), np.asarray(phase)
     delta = np.abs(corrected - raw) if raw.size else np.zeros((0, layout.dim))
     pos, g = list(layout.pos), layout.gripper
