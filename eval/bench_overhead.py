@@ -70,6 +70,8 @@ CONFIGS = {
     "phys_el joint_diag": PhysVLAConfig(mode="phys_el"),
     "phys_el task_space": PhysVLAConfig(mode="phys_el", weighting="task_space"),
     "phys_el gated": PhysVLAConfig(mode="phys_el", el_mode="gated"),
+    "shipped default": PRESETS[DEFAULT_PRESET],
+    "smooth preset": PRESETS["smooth"],
 }
 
 
@@ -541,7 +543,8 @@ def main() -> None:
     subprocess.run([sys.executable, str(ROOT / "policies/make_scripted_policy.py"), str(policy)], check=True,
                    capture_output=True)
     runs = (("phys_el", 1, ("--physvla.mode=phys_el",)), ("phys_el", 8, ("--physvla.mode=phys_el",)),
-            ("shipped default", 1, ()), (FLOOR, 1, ("--bench-floor",)), (FLOOR, 8, ("--bench-floor",)))
+            ("shipped default", 1, ()), ("smooth preset", 1, ("--physvla.preset=smooth",)),
+            (FLOOR, 1, ("--bench-floor",)), (FLOOR, 8, ("--bench-floor",)))
     tries: dict[str, list[dict]] = {f"{name} B={b}": [] for name, b, _ in runs}
     for rep in range(args.eval_repeats):  # interleaved: this VM's speed drifts over minutes
         for k, (name, b, flags) in enumerate(runs):

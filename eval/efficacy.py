@@ -328,7 +328,8 @@ CANDIDATE_7_VARIANTS = (CANDIDATE_7, CANDIDATE_7 + ", alpha_max=0.8", CANDIDATE_
                         CANDIDATE_7 + ", alpha_max=0.8, speed_hi=1", CANDIDATE_8)
 LIFT_REPORTED = (*LIFT_CONFIGS, *CANDIDATE_7_VARIANTS, CANDIDATE_9, CANDIDATE_10, CANDIDATE_12,
                  CANDIDATE_13, CANDIDATE_13B, CANDIDATE_14, CANDIDATE_15,
-                 CANDIDATE_16, CANDIDATE_17, CANDIDATE_19, SMOOTH)  # rows of the Lift / Fetch sections
+                 CANDIDATE_16, CANDIDATE_17, CANDIDATE_19, SMOOTH,  # rows of the Lift / Fetch sections
+                 "temporal", "paper (eq. 2, c=0.05)", "paper Alg. 1 (c=1)")  # (the last three: stage paper_modes)
 # candidate 7's variants on the design seeds (LIBERO 0-4 and Lift / Fetch 7-26: stage design7)
 DESIGN7 = {name: COMPARED[name] for name in ("baseline", *CANDIDATE_7_VARIANTS)}
 # Chosen on the design seeds: candidate 7 (alpha_max 0.6, no speed fading): the jitter expert's jerk

@@ -183,21 +183,22 @@ def lift_tables() -> list[str]:
         return []
     lines = []
     rows = [row for first in (ef.LIFT_CONFIRM, ef.LIFT_CONFIRM18, ef.LIFT_CONFIRM19) for row in ef._lift_rows(recs, first)
-            if any(f"| {c} |" in row for c in ("baseline", ef.SHIPPED, ef.SMOOTH, ef.CANDIDATE_14, "temporal"))]
+            if any(f"| {c} |" in row for c in ("baseline", ef.SHIPPED, ef.SMOOTH, ef.CANDIDATE_14, *ef.PAPER_MODES))]
     if rows:
         lines += ["**Lift and Fetch, grasp-phase noise sigma 0 / 0.40, the confirmation blocks (seeds 100-159)** (paper "
-                  "Table A1: jerk-degradation ratio ~10x; baseline, the shipped default, the `smooth` preset and candidate "
-                  "14, its low-pass, where they ran)\n",
+                  "Table A1: jerk-degradation ratio ~10x; baseline, the shipped default, the `smooth` preset, candidate "
+                  "14 (its low-pass) and the paper's modes, where they ran)\n",
                   "| sim | block | configuration | success sigma 0 | success sigma 0.40 | jerk sigma 0 | jerk sigma 0.40 | "
                   "degradation | baseline's degradation / this one's |", "|---|---|---|---|---|---|---|---|---|", *rows, ""]
     prow = []
     for first in (ef.LIFT_CONFIRM, ef.LIFT_CONFIRM18, ef.LIFT_CONFIRM19):
         plate = [dict(r, task_id=0) for r in recs if r["scene"] == "lift_plate" and first <= r["seed"] < first + 20]
-        prow += [ef.paired_row(f"seeds {first}-{first + 19} / {c}", p) for c in (ef.SHIPPED, ef.SMOOTH)
+        prow += [ef.paired_row(f"seeds {first}-{first + 19} / {c}", p) for c in (*ef.PAPER_MODES, ef.SHIPPED, ef.SMOOTH)
                  if (p := ef.paired(plate, c, "lift_plate bias<=1.7"))["n"]]
     if prow:
         lines += ["**Lift + place-on-plate with a persistent place bias, the confirmation blocks** (paper: 35 % -> 95 %; "
-                  "the shipped default's release veto, not eq. 5, does it)\n", *ef.PAIRED_HEAD, *prow, ""]
+                  "the shipped default's release veto, not eq. 5, does it; the paper's modes where they ran)\n",
+                  *ef.PAIRED_HEAD, *prow, ""]
     return lines
 
 
