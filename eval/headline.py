@@ -165,15 +165,7 @@ def newest_table() -> list[str]:
                 "smoothing foil; `paper (eq. 2, c=0.05)`: its main text (`--physvla.preset=paper`); `paper Alg. 1 "
                 "(c=1)`: its supplement (`paper_alg1`); `default + rim guide`: the shipped default "
                 "(`--policy.postprocess=physvla` alone); `smooth`: `--physvla.preset=smooth`\n", *rows, ""]
-    looked = ("no decision about either looked at these episodes (the shipped default's rule was written before "
-              "them, the smooth preset's before its stages ran; the learned ACTs' baseline there ran after candidate "
-              "20's verdict, nothing was chosen from it)")
-    return (_confirmation_table(recs, ef, ef.SMOOTH, ef.CANDIDATE_17, ef.SMOOTH_BACKBONES, ef.FRESH_DRAWS_19, "3s, 3t",
-                                "the shipped default's and the `smooth` preset's newest", "the shipped default",
-                                looked=looked, learned_seeds="20-24")
-            or _confirmation_table(recs, ef, ef.CANDIDATE_17, ef.CANDIDATE_19, ef.CONFIRM19_BACKBONES,
-                                   ef.FRESH_DRAWS_19, "3s", "the shipped default's (`{cand}`) newest",
-                                   "candidate 20, not shipped", looked=looked, learned_seeds="20-24"))
+    return []
 
 
 def lift_tables() -> list[str]:
