@@ -3,8 +3,9 @@
 A unit runs its episodes in one process on a state-only scene (lerobot_physvla.sim.scenes: LIBERO,
 robosuite Lift, Fetch) with the core library alone (no LeRobot in the loop for scripted
 backbones: the same corrector, state sources and metrics that `lerobot-eval
---policy.postprocess=physvla` uses) and writes one JSON of per-episode records. Units already on
-disk are skipped, so a killed sweep resumes where it stopped.
+--policy.postprocess=physvla` uses) and writes one JSON of per-episode records. Units already in the
+cache (outputs/eval/<study>/units, ignored by git) are skipped, so a killed sweep resumes where it
+stopped; eval/run.py then moves their episodes into the study's data (eval/store.py).
 
 Backends: a local process pool (default; `workers` = the CPU count; each worker keeps the scenes
 and policies it built) or Ray (`backend="ray"`): it joins the cluster at $RAY_ADDRESS, or starts
@@ -38,11 +39,13 @@ class Unit:
 
     Attributes:
         backbone: backbone name (a key of BACKBONES, or a learned backbone's name).
-        config_name, config: the corrector config (PhysVLAConfig.to_dict()).
+        config_name, config: the configuration's hash (eval/store.py) and the corrector config
+            (PhysVLAConfig.to_dict()).
         task_id: LIBERO task id (scene "libero_spatial"); ignored by other scenes.
         first_seed, episodes: the seed block.
         expert: ExpertConfig fields of the scripted backbone's failure modes.
-        scene: "libero_spatial" (with task_id), "lift", "lift_plate" or "fetch_pick_place".
+        scene: "libero_spatial" (with task_id), "lift", "lift_plate", "fetch_pick_place" or
+            "so101_pick_place" (lerobot's robot action processor on the simulated SO-101: so101_robot.py).
         policy: checkpoint directory of a learned backbone ("" = scripted expert).
     """
 
@@ -142,6 +145,10 @@ def compute_unit(unit: Unit) -> dict:
     from lerobot_physvla.core.config import PhysVLAConfig
     from lerobot_physvla.core.corrector import Corrector
 
+    if unit.scene == "so101_pick_place":  # lerobot's robot action processor on the simulated SO-101
+        from so101_robot import compute_unit as so101_unit
+
+        return so101_unit(unit)
     scene = _scene(unit.scene_name)
     backbone = _backbone(unit, scene)
     # the configuration for this policy: chunk_phase_caps apply to policies that execute chunks
@@ -240,25 +247,14 @@ def run_units(units: list[Unit], out_dir: str | Path, workers: int | None = None
 
 
 def _check_stale(done: list[Unit], out: Path) -> None:
-    """A unit on disk is keyed by names, not by its configuration: refuse to reuse one whose
-    corrector configuration or expert differs from what is asked now (a preset changed since), or
-    that ran other weights than the learned backbone's checkpoint holds now (it was retrained)."""
-    from lerobot_physvla.core.config import PhysVLAConfig
-
-    def effective(d: dict) -> PhysVLAConfig:  # the low-pass's parameters matter only when it is on
-        c = PhysVLAConfig.from_dict(d)
-        return c if c.lowpass != "off" else c.replace(lowpass_alpha_max=0.0, lowpass_rough_lo=0.0,
-                                                      lowpass_rough_hi=1.0, lowpass_phases="",
-                                                      lowpass_space="action", lowpass_speed_hi=0.0,
-                                                      lowpass_rough="ema", lowpass_lag="trail")
-
+    """A unit on disk is keyed by backbone name and configuration hash: refuse to reuse one whose expert
+    differs from what the name means now, or that ran other weights than the learned backbone's
+    checkpoint holds now (it was retrained)."""
     for u in done:
         path = out / "units" / f"{u.key}.json"
         payload = json.loads(path.read_text())
-        was = payload["unit"]
-        if (effective(was["config"]) != effective(u.config)
-                or was.get("expert", {}) != u.expert):
-            raise SystemExit(f"harness: {path} was run with another configuration than {u.config_name!r} has now; "
+        if payload["unit"].get("expert", {}) != u.expert:
+            raise SystemExit(f"harness: {path} was run with another expert than {u.backbone!r} has now; "
                              "delete it to re-run that unit")
         if u.policy and payload.get("policy_sha256") != policy_fingerprint(u.policy):
             raise SystemExit(f"harness: {path} was run with other weights than {u.policy} holds now (retrained); "

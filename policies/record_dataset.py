@@ -15,7 +15,7 @@ the demonstrations cover the states a slightly-off learned policy will visit. Se
 levels (`--dart-sigma 0.1,0.3`) record each init state once per level, each with its own noise
 draw: more varied recoveries from the same starts.
 
-Init states: LIBERO has 50 per task; evaluation (eval/experiments.py) uses seeds 0..N-1, so the
+Init states: LIBERO has 50 per task; evaluation (eval/run.py, eval/studies/) uses seeds 0..N-1, so the
 default training seeds 10-39 never overlap the evaluation's first 10.
 """
 

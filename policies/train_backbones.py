@@ -16,7 +16,7 @@ trained on the H100 succeeds 68 % on init states 5-9, trained here 46 %
 (eval/results/learned_checkpoints). On this CPU a recipe trains in 29-42 min with the default one
 loader worker (eval/results/bench_training), one recipe at a time. The checkpoints land in
 outputs/train/<recipe>/checkpoints/<step>/pretrained_model (every fifth of the steps; `last` is
-the final one), which eval/experiments.py learned uses (or
+the final one), which eval/run.py learned uses (or
 `lerobot-eval --policy.path=... --env.type=libero_physvla --env.cameras=false`).
 
     act_single        ACT, chunk 1 (a single-step policy)
@@ -40,7 +40,7 @@ the 30-50 % band #9 asks for; the `_mid` siblings (`CONTINUED`, `CPU_DRAW`, `MID
     .venv/bin/python policies/train_backbones.py act_chunk_w112_fine   # seventh round: resumes it from 4800
     .venv/bin/python policies/train_backbones.py act_chunk_few5 --out outputs/train/cpu_full   # eighth: FEWER
     .venv/bin/python policies/train_backbones.py act_chunk_few10 --out outputs/train/cpu_full
-    .venv/bin/python eval/experiments.py learned_mid --learned act_single_mid,act_chunk_mid,act_chunk_mid2
+    .venv/bin/python eval/run.py learned_mid
 
 Normalisation: lerobot 0.6.1's ACT and Diffusion configs normalise only the VISUAL, STATE and
 ACTION feature types; `observation.environment_state` (type ENV: object and target xyz, metres)
@@ -109,8 +109,8 @@ SIBLINGS: dict[str, tuple[str, int]] = {
 # - CPU_DRAW: the recipe run whole on this CPU (`train_backbones.py <recipe> --out
 #   outputs/train/cpu_full`): the same recipe, data and seed, another draw (the GPU's numerics are
 #   not this CPU's; eval/results/learned_checkpoints), its final checkpoint.
-# The one kept is the candidate whose uncorrected success on init states 5-9 (eval/experiments.py
-# learned_mid) lies closest to 40 %, ties to the earlier; the learned table reports it on 0-4.
+# The one kept is the candidate whose uncorrected success on init states 5-9 (the study
+# eval/studies/learned_mid.toml) lies closest to 40 %, ties to the earlier; the learned table reports it on 0-4.
 # name -> (committed checkpoint it continues, steps, save every)
 CONTINUED: dict[str, tuple[str, int, int]] = {
     "act_single_mid": ("act_single_weak", 4000, 1000),

@@ -213,7 +213,7 @@ def test_recorded_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
 def test_the_committed_checkpoints_are_the_weights_the_published_table_ran():
     """policies/checkpoints holds the GPU-trained ACT backbones (and the `_mid` siblings trained from
     them or beside them on this CPU): each one's weights are the ones every
-    unit of eval/results/learned recorded for it, and the harness runs it (on the CPU) with no
+    episode of eval/results/learned recorded for it, and the harness runs it (on the CPU) with no
     training here. A retrained or replaced file would fail the first assertion."""
     import hashlib
 
@@ -221,15 +221,16 @@ def test_the_committed_checkpoints_are_the_weights_the_published_table_ran():
 
     from lerobot_physvla.sim.scenes import LiberoScene
 
-    units = ROOT / "eval/results/learned/units"
+    from store import Store
+
+    ran_with = Store(ROOT / "eval/results/learned").meta["backbones"]
     names = sorted(p.name for p in train_backbones.COMMITTED.iterdir() if (p / "model.safetensors").exists())
     assert {"act_single", "act_single_weak", "act_chunk", "act_chunk_weak"} <= set(names)
     for name in names:
         ckpt = train_backbones.trained_or_committed(name, "/nonexistent")
         assert ckpt == train_backbones.COMMITTED / name
         sha = hashlib.sha256((ckpt / "model.safetensors").read_bytes()).hexdigest()
-        ran = {json.loads(u.read_text())["policy_sha256"] for u in units.glob(f"{name}__*.json")}
-        assert ran == {sha}, name
+        assert ran_with[name] == {"policy_sha256": sha}, name
         recipe = json.loads((ckpt / "recipe.json").read_text())
         if name in train_backbones.MID_CHOICE:  # trained here: the continued run, or the recipe's CPU draw
             drawn = (train_backbones.CPU_DRAW.get(name, ("",))[0], *train_backbones.SMALLER_OF.get(name, ()),
@@ -254,11 +255,16 @@ def test_the_mid_sibling_rule_keeps_the_checkpoint_closest_to_40_percent():
 
 def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs():
     """MID_CHOICE (which checkpoint each `_mid` sibling is) must be what choose_mid gives on the
-    uncorrected results eval/experiments.py learned_mid recorded (every candidate, n = 50 each),
-    not a hand pick; and the committed copy holds the weights those units ran."""
+    uncorrected results the learned_mid study recorded (every candidate, n = 50 each), not a hand
+    pick; and the committed copy holds the weights those episodes ran."""
     import hashlib
 
-    units = ROOT / "eval/results/learned_mid/units"
+    from store import Store, config_hash
+
+    from lerobot_physvla.core.config import PhysVLAConfig
+
+    data = Store(ROOT / "eval/results/learned_mid")
+    uncorrected = config_hash(PhysVLAConfig(mode="baseline").to_dict())
     assert set(train_backbones.MID_CHOICE) <= set(train_backbones.MID_SIBLINGS)
     for name in train_backbones.MID_SIBLINGS:
         run, step = train_backbones.MID_CHOICE.get(name, (None, None))
@@ -269,12 +275,11 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
                     + [f"{small}@" for small in train_backbones.SMALLER_OF.get(name, ())]
                     + [f"{few}@" for few in train_backbones.FEWER_OF.get(name, ())])
         rate, sha = {}, {}
-        for u in sorted(units.glob("*__baseline__*.json")):
-            cand = u.name.split("__")[0]
-            if any(cand.startswith(p) for p in prefixes):
-                payload = json.loads(u.read_text())
-                rate.setdefault(cand, []).extend(r["success"] for r in payload["records"])
-                sha[cand] = payload["policy_sha256"]
+        for r in data.rows:
+            cand = r["backbone"]
+            if r["config"] == uncorrected and any(cand.startswith(p) for p in prefixes):
+                rate.setdefault(cand, []).append(r["success"])
+                sha[cand] = data.meta["backbones"][cand]["policy_sha256"]
         steps = ((continued[1] // continued[2] if continued else 0) + (len(drawn[1]) if drawn else 0)
                  + sum((train_backbones.RESUMED[r][2] - train_backbones.RESUMED[r][1]) // train_backbones.RESUMED[r][3] - 1
                        for r in resumed)

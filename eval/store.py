@@ -1,0 +1,115 @@
+"""Results as data: a study's episodes in one compressed JSON-lines file, its configurations in one table.
+
+    eval/results/<study>/episodes.jsonl.gz   one row per episode (sorted), keyed by configuration hash
+    eval/results/<study>/configs.json        {"configs": {hash: PhysVLAConfig dict},
+                                              "backbones": {name: {"expert": {...}} | {"policy_sha256": ...}}}
+
+A row holds what `harness.run_episode` measured (success, steps, jerk, ...) plus where it ran:
+`backbone`, `config` (the configuration's hash), `scene`, `task_id`, `seed`. Names of configurations
+live in the study file, never in the rows: a study names each hash it shows, so renaming a
+configuration never touches data. Everything is written deterministically (sorted rows and keys,
+gzip without a timestamp), so re-writing unchanged data leaves the files byte-identical.
+"""
+
+from __future__ import annotations
+
+import gzip
+import hashlib
+import io
+import json
+from pathlib import Path
+
+EPISODES, CONFIGS = "episodes.jsonl.gz", "configs.json"
+KEY = ("backbone", "config", "scene", "task_id", "seed")  # one episode per key
+
+
+def effective(config: dict) -> dict:
+    """The configuration as it acts: a full PhysVLAConfig dict, with the low-pass's parameters reset when the
+    low-pass is off (they cannot change an action then)."""
+    from lerobot_physvla.core.config import PhysVLAConfig
+
+    c = PhysVLAConfig.from_dict(config)
+    if c.lowpass == "off":
+        c = c.replace(lowpass_alpha_max=0.0, lowpass_rough_lo=0.0, lowpass_rough_hi=1.0, lowpass_phases="",
+                      lowpass_space="action", lowpass_speed_hi=0.0, lowpass_rough="ema", lowpass_lag="trail")
+    return c.to_dict()
+
+
+def config_hash(config: dict) -> str:
+    """12 hex digits of sha256 over the effective configuration (sorted JSON)."""
+    return hashlib.sha256(json.dumps(effective(config), sort_keys=True).encode()).hexdigest()[:12]
+
+
+def row_key(row: dict) -> tuple:
+    return tuple(row[k] for k in KEY)
+
+
+class Store:
+    """One study's results directory: read, add and write episode rows and their configurations."""
+
+    def __init__(self, root: str | Path):
+        self.root = Path(root)
+        self._rows: dict[tuple, dict] | None = None
+        self._meta: dict | None = None
+
+    # ---- reading
+    @property
+    def rows(self) -> list[dict]:
+        return list(self._load().values())
+
+    def _load(self) -> dict[tuple, dict]:
+        if self._rows is None:
+            self._rows = {}
+            path = self.root / EPISODES
+            if path.exists():
+                with gzip.open(path, "rt") as f:
+                    for line in f:
+                        r = json.loads(line)
+                        self._rows[row_key(r)] = r
+        return self._rows
+
+    @property
+    def meta(self) -> dict:
+        if self._meta is None:
+            path = self.root / CONFIGS
+            self._meta = json.loads(path.read_text()) if path.exists() else {"configs": {}, "backbones": {}}
+        return self._meta
+
+    def has(self, key: tuple) -> bool:
+        return key in self._load()
+
+    # ---- writing
+    def add_config(self, config: dict) -> str:
+        h = config_hash(config)
+        self.meta["configs"].setdefault(h, effective(config))
+        return h
+
+    def add_backbone(self, name: str, what: dict) -> None:
+        """What a backbone name stands for (its expert faults, or its weights' sha256); a name may not change
+        meaning inside one study."""
+        was = self.meta["backbones"].setdefault(name, what)
+        if was != what:
+            raise SystemExit(f"store: backbone {name!r} in {self.root} was {was}, now {what}: give it another name")
+
+    def add(self, rows: list[dict]) -> None:
+        have = self._load()
+        for r in rows:
+            have[row_key(r)] = r
+
+    def write(self) -> None:
+        self.root.mkdir(parents=True, exist_ok=True)
+        rows = sorted(self._load().values(), key=lambda r: tuple(str(v) for v in row_key(r)[:3]) + row_key(r)[3:])
+        buf = io.BytesIO()
+        with gzip.GzipFile(fileobj=buf, mode="wb", mtime=0, compresslevel=9) as f:
+            for r in rows:
+                f.write((json.dumps(r, sort_keys=True) + "\n").encode())
+        _write_bytes(self.root / EPISODES, buf.getvalue())
+        meta = {"configs": dict(sorted(self.meta["configs"].items())),
+                "backbones": dict(sorted(self.meta["backbones"].items()))}
+        _write_bytes(self.root / CONFIGS, (json.dumps(meta, indent=1, sort_keys=True) + "\n").encode())
+
+
+def _write_bytes(path: Path, data: bytes) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_bytes(data)
+    tmp.replace(path)  # atomic: a killed run never leaves a half-written file

@@ -1,0 +1,202 @@
+"""The evaluation tool: study files, results as data, comparisons and rules, reports regenerated from data.
+
+The committed READMEs (every study's and the README headline) must be what the data gives now, byte for
+byte; every recorded verdict must be what its declared rule gives on the data; a new study runs from a
+study file and one call, and a second call runs nothing.
+"""
+
+from __future__ import annotations
+
+import gzip
+import re
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "eval"))
+import compare as cmp  # noqa: E402
+import headline  # noqa: E402
+import report  # noqa: E402
+import run  # noqa: E402
+import study as study_mod  # noqa: E402
+from store import Store, config_hash  # noqa: E402
+from study import Study  # noqa: E402
+
+from lerobot_physvla.core.config import PRESETS, PhysVLAConfig  # noqa: E402
+
+# episode rows per study's data, as the per-unit files held them before they became data (efficacy: 16,935
+# records, 40 of them the same episodes run twice under two names with identical results, kept once)
+EPISODES = {"table2": 600, "ablation": 350, "place_bias": 60, "lift_sweep": 420, "fetch_sweep": 420, "lift_plate": 60,
+            "learned": 14220, "learned_checkpoints": 550, "learned_mid": 2600, "learned_v0": 600, "learned_fixes": 200,
+            "so101_faults": 1200, "efficacy": 16895}
+
+
+def test_every_study_readme_is_what_its_data_gives():
+    assert run.check_all() == []
+    studies = {f.stem for f in study_mod.STUDIES.glob("*.toml")}
+    assert set(EPISODES) <= studies
+    for name in EPISODES:  # every study has a README that the check compared
+        assert (Study(study_mod.find(name)).results / "README.md").exists(), name
+
+
+def test_the_readme_headline_is_what_the_data_gives():
+    assert headline.current() == headline.block()
+
+
+def test_the_data_holds_every_episode():
+    for name, n in EPISODES.items():
+        assert len(Store(study_mod.RESULTS / name).rows) == n, name
+
+
+def test_results_stay_small():
+    files = [p for p in (ROOT / "eval" / "results").rglob("*") if p.is_file()]
+    assert len(files) <= 200 and sum(p.stat().st_size for p in files) <= 10 * 2**20
+
+
+def test_no_candidate_constant_in_eval_code():
+    for f in (ROOT / "eval").rglob("*.py"):
+        assert not re.search(r"^\s*(CANDIDATE_|DESIGN|CONFIRM)\w*\s*=", f.read_text(), flags=re.M), f
+
+
+def test_recorded_verdicts_are_what_the_declared_rules_give():
+    s = Study(study_mod.find("efficacy"))
+    rows = report.Rows(s, run.rows_of(s))
+    checked = 0
+    for c in s.compares:
+        for role, verdict in c.verdicts.items():
+            assert report.compare_verdict(s, rows, c, role) is verdict, (c.name, role)
+            checked += 1
+    assert checked >= 20
+
+
+def test_the_presets_are_the_configurations_that_were_measured():
+    s = Study(study_mod.find("efficacy"))
+    assert s.config_hash(headline.SHIPPED) == config_hash(PRESETS["default"].to_dict())
+    assert s.config_hash(headline.SMOOTH) == config_hash(PRESETS["smooth"].to_dict())
+
+
+# ---------------------------------------------------------------------------------------------- store
+
+
+def test_store_writes_the_same_bytes_for_the_same_rows(tmp_path):
+    rows = [{"backbone": "b", "config": "h", "scene": "libero_spatial", "task_id": t, "seed": s, "success": (t + s) % 2 == 0,
+             "mean_jerk": 1.5 + s} for t in (1, 0) for s in (3, 2)]
+    a, b = Store(tmp_path / "a"), Store(tmp_path / "b")
+    a.add(rows)
+    b.add(rows[::-1])
+    a.write()
+    b.write()
+    assert (tmp_path / "a" / "episodes.jsonl.gz").read_bytes() == (tmp_path / "b" / "episodes.jsonl.gz").read_bytes()
+    lines = gzip.open(tmp_path / "a" / "episodes.jsonl.gz", "rt").read().splitlines()
+    assert len(lines) == 4 and '"task_id": 0' in lines[0]
+    again = Store(tmp_path / "a")
+    key = lambda r: (r["task_id"], r["seed"])  # noqa: E731
+    assert sorted(again.rows, key=key) == sorted(rows, key=key)
+    again.add([dict(rows[0], success=not rows[0]["success"])])  # the same key replaces, never duplicates
+    assert len(again.rows) == 4
+
+
+def test_config_hash_ignores_low_pass_fields_only_while_the_low_pass_is_off():
+    off = PhysVLAConfig(mode="phys")
+    assert config_hash(off.to_dict()) == config_hash(off.replace(lowpass_alpha_max=0.3).to_dict())
+    on = off.replace(lowpass="adaptive")
+    assert config_hash(on.to_dict()) != config_hash(on.replace(lowpass_alpha_max=0.3).to_dict())
+    assert config_hash(off.to_dict()) != config_hash(off.replace(cap=0.1).to_dict())
+
+
+def test_a_backbone_name_keeps_one_meaning(tmp_path):
+    s = Store(tmp_path)
+    s.add_backbone("expert_jitter", {"expert": {"action_noise": 0.3}})
+    with pytest.raises(SystemExit, match="another name"):
+        s.add_backbone("expert_jitter", {"expert": {"action_noise": 0.2}})
+
+
+# ---------------------------------------------------------------------------------------------- compare
+
+
+def _rows(successes, jerk=1.0, task=0):
+    return [{"task_id": task, "seed": s, "success": ok, "mean_jerk": jerk} for s, ok in enumerate(successes)]
+
+
+def test_paired_counts_interval_and_task_losses():
+    p = cmp.paired(_rows([True, True, False, False, True], jerk=2.0), _rows([True, False, False, True, False]))
+    assert (p["n"], p["won"], p["lost"], p["both"], p["neither"]) == (5, 2, 1, 1, 1)
+    d = np.array([0, 1, 0, -1, 1])
+    half = 1.96 * d.std(ddof=1) / np.sqrt(5)
+    assert p["diff"] == pytest.approx(0.2) and p["ci"] == pytest.approx((0.2 - half, 0.2 + half))
+    assert p["jerk_ratio"] == pytest.approx(2.0) and p["task_losses"] == {}
+    worse = cmp.paired(_rows([False, False]), _rows([True, False]))
+    assert worse["task_losses"] == {0: 1} and worse["success"] == 0 and worse["base_success"] == 0.5
+    pool = cmp.pooled([p, worse])
+    assert pool["n"] == 7 and pool["won"] == 2 and pool["lost"] == 2
+
+
+def test_degradation_ratio_is_baselines_growth_over_the_candidates():
+    base = cmp.degradation(_rows([True], jerk=2.0), _rows([True], jerk=6.0))  # +200 %
+    this = cmp.degradation(_rows([True], jerk=2.0), _rows([True], jerk=3.0))  # +50 %
+    assert base == pytest.approx(2.0) and cmp.degradation_ratio(base, this) == pytest.approx(4.0)
+
+
+def test_a_rule_fails_on_a_complete_cell_and_waits_on_an_incomplete_one():
+    net = cmp.Check.from_dict({"metric": "net", "against": "reference", "min": -1})
+    good = {"candidate": _rows([True] * 4), "reference": _rows([True] * 4), "n": 4}
+    bad = {"candidate": _rows([False, False, True, True]), "reference": _rows([True] * 4), "n": 4}
+    partial = {"candidate": _rows([True] * 2), "reference": _rows([True] * 4), "n": 4}
+    assert cmp.evaluate(net, {"a": good}, ["a"])[0] is True
+    assert cmp.evaluate(net, {"a": good, "b": bad}, ["a", "b"]) == (False, "a +0, b -2")
+    assert cmp.evaluate(net, {"a": good, "c": partial}, ["a", "c"])[0] is None
+    assert cmp.evaluate(net, {"b": bad, "c": partial}, ["b", "c"])[0] is False  # decided whatever c gives
+    lower = cmp.Check.from_dict({"metric": "pooled_lower", "against": "reference", "above": 0})
+    assert cmp.evaluate(lower, {"a": good}, ["a"])[0] is False  # +0 pp [+0, +0]: not above 0
+    with pytest.raises(ValueError, match="unknown metric"):
+        cmp.Check.from_dict({"metric": "vibes"})
+
+
+# ---------------------------------------------------------------------------------------------- a new study
+
+
+STUDY = """
+title = "The shipped default against its rim guide at 5 cm"
+[backbones]
+expert_clean = {expert = {}}
+[configs]
+baseline = {mode = "baseline"}
+default = {preset = "default"}
+"rim 5 cm" = {preset = "default", rim_guide_m = 0.05}
+[blocks]
+fresh = {scene = "libero_spatial", tasks = [0, 0], seeds = [3, 3], backbones = ["expert_clean"]}
+[[compare]]
+name = "rim guide at 5 cm"
+candidate = "rim 5 cm"
+reference = "default"
+confirm = ["fresh"]
+rule = [{metric = "net", against = "reference", min = -1, label = "no pair net down"}]
+[[report]]
+kind = "compares"
+"""
+
+
+def test_a_new_study_runs_from_its_file_and_resumes_from_its_data(tmp_path, monkeypatch):
+    monkeypatch.setattr(study_mod, "RESULTS", tmp_path / "results")
+    monkeypatch.setattr(run, "CACHE", tmp_path / "cache")
+    path = tmp_path / "rim5.toml"
+    path.write_text(STUDY)
+    s = Study(path)
+    assert run.run(s, workers=1) == 3  # one episode of each of baseline, default, rim 5 cm
+    data = Store(tmp_path / "results" / "rim5")
+    assert len(data.rows) == 3 and len(data.meta["configs"]) == 3
+    assert all(r["scene"] == "libero_spatial" and r["seed"] == 3 for r in data.rows)
+    text = run.write_report(Study(path)).read_text()
+    assert "3 episodes" in text and "Rule on the confirm blocks: **pass**" in text
+    assert "| expert_clean / candidate vs default | 1 |" in text
+    assert run.run(Study(path), workers=1) == 0  # everything is in the data: nothing runs again
+
+
+def test_a_study_that_names_an_unknown_configuration_says_which(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(STUDY.replace('candidate = "rim 5 cm"', 'candidate = "rim 6 cm"'))
+    with pytest.raises(SystemExit, match="unknown configuration 'rim 6 cm'"):
+        Study(path)
