@@ -241,7 +241,9 @@ def compare_lines(study, rows, c) -> list[str]:
         if not names:
             continue
         blocks = [study.blocks[n] for n in names]
-        lines += [f"{role.capitalize()} blocks: " + "; ".join(_block_label(b) for b in blocks) + ".\n", *PAIRED_HEAD]
+        lines += [f"{role.capitalize()} blocks: " + "; ".join(_block_label(b) for b in blocks) + ".\n",
+                  PAIRED_HEAD[0].replace("| baseline |", "| the other |").replace("/ baseline's", "/ the other's"),
+                  PAIRED_HEAD[1]]
         cells, order = rule_cells(study, rows, c, blocks)
         for b in order:
             for other in dict.fromkeys([c.baseline, c.reference]):

@@ -6,9 +6,9 @@
     .venv/bin/python eval/run.py efficacy --report-only                 # the README from the data alone
     .venv/bin/python eval/run.py --check                                # every study's README against its data
 
-What a study needs: every [[compare]]'s configurations (baseline, reference, candidate, `also`) on every
-backbone of its blocks (`--role` / `--compare` narrow it), and every [[run]] entry's configurations on its
-blocks. An episode is (backbone, configuration hash, scene, task, seed); those already in
+What a study needs: every undecided [[compare]]'s configurations (baseline, reference, candidate, `also`)
+on every backbone of its blocks (`--role` / `--compare` narrow it; `--compare` also reaches a decided one,
+whose `outcome` is recorded), and every [[run]] entry's configurations on its blocks. An episode is (backbone, configuration hash, scene, task, seed); those already in
 eval/results/<study>/episodes.jsonl.gz are not run again. New episodes run in the harness (process pool
 or Ray, a progress bar with the ETA; a killed run resumes from its cache under outputs/eval/) and are
 added to the data, then the README and plots are written.
@@ -31,10 +31,13 @@ CACHE = ROOT / "outputs" / "eval"
 
 
 def needed(study: Study, roles=ROLES, only: str | None = None) -> list[tuple]:
-    """The cells a study needs: (block, backbone, configuration name)."""
+    """The cells a study needs: (block, backbone, configuration name). A comparison whose outcome is recorded
+    was decided on the episodes it had: its cells run only when `only` names it."""
     cells = []
     for c in study.compares:
         if only and only.lower() not in c.name.lower():
+            continue
+        if c.outcome and not only:
             continue
         for role in roles:
             for bn in c.blocks.get(role, []):
@@ -49,17 +52,22 @@ def needed(study: Study, roles=ROLES, only: str | None = None) -> list[tuple]:
     return list(dict.fromkeys(cells))
 
 
-def missing_units(study: Study, store: Store, cells, per_unit: int, checkpoints: str) -> list[harness.Unit]:
-    """Harness units for the episodes of `cells` the store does not hold: runs of consecutive seeds of one
-    (backbone, configuration, scene, task), at most `per_unit` episodes each."""
+def missing(study: Study, store: Store, cells) -> dict[tuple, list[int]]:
+    """The episodes of `cells` the store does not hold: {(backbone, configuration, scene, task): [seeds]}."""
     todo = defaultdict(list)
-    policies = {}
     for bl, b, name in cells:
         h = study.config_hash(name, bl.scene)
         for t in bl.tasks:
             for s in bl.seeds:
                 if not store.has((b, h, bl.scene, t, s)):
                     todo[(b, name, bl.scene, t)].append(s)
+    return todo
+
+
+def missing_units(study: Study, todo: dict[tuple, list[int]], per_unit: int, checkpoints: str) -> list[harness.Unit]:
+    """Harness units for the missing episodes: runs of consecutive seeds of one (backbone, configuration,
+    scene, task), at most `per_unit` episodes each."""
+    policies = {}
     units = []
     for (b, name, scene, t), seeds in todo.items():
         spec = study.backbone_spec(b)
@@ -92,10 +100,19 @@ def run(study: Study, roles=ROLES, only=None, workers=None, backend="process", p
     for other in study.data[1:]:  # episodes another study's data already holds are not run again
         store.add(Store(other).rows)
         store.meta["backbones"].update(Store(other).meta["backbones"])
-    units = missing_units(study, store, needed(study, roles, only), per_unit, checkpoints)
-    n = sum(u.episodes for u in units)
+    todo = missing(study, store, needed(study, roles, only))
+    n = sum(len(v) for v in todo.values())
+    if dry_run:
+        print(f"{study.name}: {len(store.rows)} episodes on disk; {n} to run")
+        cells = defaultdict(int)
+        for (b, name, scene, _), seeds in todo.items():
+            cells[(name, b, scene)] += len(seeds)
+        for (name, b, scene), k in sorted(cells.items()):
+            print(f"  {k:5d}  {name} / {b} ({scene})")
+        return 0
+    units = missing_units(study, todo, per_unit, checkpoints)
     print(f"{study.name}: {len(store.rows)} episodes on disk; {n} to run in {len(units)} units")
-    if dry_run or not units:
+    if not units:
         return 0
     new = Store(study.data[0])  # the new episodes, their configurations and backbones go here
     for u in units:  # a learned backbone's weights must be the ones its episodes on disk ran with
