@@ -1,8 +1,12 @@
-"""The README's results block, computed from the studies' data (eval/results/<study>/episodes.jsonl.gz).
+"""The results the README and docs/results.md show, computed from the studies' data
+(eval/results/<study>/episodes.jsonl.gz).
 
-    .venv/bin/python eval/headline.py           # print the block
-    .venv/bin/python eval/headline.py --write   # replace it in README.md (between the markers)
-    .venv/bin/python eval/headline.py --check   # exit 1 if README.md's block differs from the data
+    .venv/bin/python eval/headline.py           # print both blocks
+    .venv/bin/python eval/headline.py --write   # replace them in README.md and docs/results.md (between the markers)
+    .venv/bin/python eval/headline.py --check   # exit 1 if either differs from the data
+
+README.md holds one table (baseline, the shipped default and the paper's two readings on the newest
+held-out blocks); docs/results.md every table.
 
 Nothing here is typed by hand: every number comes from a study's episode rows, selected by the
 study file's blocks and configuration names.
@@ -158,6 +162,27 @@ def paired_table(name: str, title: str) -> list[str]:
     return lines + [""]
 
 
+def readme_table() -> list[str]:
+    """Baseline, the shipped default and the paper's two readings on the newest held-out blocks: success,
+    and the paired difference against baseline [95 % CI], compact."""
+    study, rows = _load("efficacy")
+    configs = (SHIPPED, "paper (eq. 2, c=0.05)", "paper Alg. 1 (c=1)")
+    lines = ["| policy | baseline | shipped default | the paper (main text) | the paper (Alg. 1) |", "|---|---|---|---|---|"]
+    for bn in ("fresh6000", "acts_20_24"):
+        bl = study.blocks[bn]
+        for b in bl.backbones:
+            base = rows.get("baseline", b, bl)
+            ps = [cmp.paired(rows.get(c, b, bl), base) for c in configs]
+            cells = [f"{p['success']:.0%} ({p['diff'] * 100:+.0f} [{p['ci'][0] * 100:+.0f}, {p['ci'][1] * 100:+.0f}])"
+                     for p in ps]
+            lines.append(f"| {b} | {ps[0]['base_success']:.0%} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def readme_block() -> str:
+    return "\n".join([START, "", *readme_table(), "", END])
+
+
 def block() -> str:
     lines = [START, ""]
     lines += newest_table()
@@ -175,6 +200,9 @@ def block() -> str:
     return "\n".join(lines)
 
 
+RESULTS_MD = ROOT / "docs" / "results.md"
+
+
 def current(path: Path = ROOT / "README.md") -> str:
     m = re.search(re.escape(START) + ".*?" + re.escape(END), path.read_text(), flags=re.S)
     if not m:
@@ -187,19 +215,18 @@ def main() -> None:
     ap.add_argument("--write", action="store_true", help="replace the block in README.md")
     ap.add_argument("--check", action="store_true", help="exit 1 if README.md's block differs from the data")
     args = ap.parse_args()
-    text = block()
+    blocks = {ROOT / "README.md": readme_block(), RESULTS_MD: block().replace("](eval/results/", "](../eval/results/")}
     if args.check:
-        same = current() == text
-        print("headline: README.md matches the data" if same else "headline: README.md differs from the data")
-        raise SystemExit(0 if same else 1)
+        stale = [p.name for p, text in blocks.items() if current(p) != text]
+        print("headline: README.md and docs/results.md match the data" if not stale else
+              f"headline: {', '.join(stale)} differ from the data")
+        raise SystemExit(1 if stale else 0)
     if not args.write:
-        print(text)
+        print("\n\n".join(blocks.values()))
         return
-    path = ROOT / "README.md"
-    old = path.read_text()
-    current(path)
-    path.write_text(old.replace(current(path), text))
-    print("headline: README.md updated")
+    for path, text in blocks.items():
+        path.write_text(path.read_text().replace(current(path), text))
+    print("headline: README.md and docs/results.md updated")
 
 
 if __name__ == "__main__":

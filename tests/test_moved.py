@@ -17,6 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 FIXTURE = ROOT / "tests/fixtures/postprocessor_v0_1"  # written by lerobot-physvla-config before the move
 
 
+@pytest.mark.slow
 def test_a_postprocessor_saved_before_the_move_loads_with_a_warning_naming_the_new_path():
     entry = json.loads((FIXTURE / "policy_postprocessor.json").read_text())["steps"][0]
     assert entry["class"] == "lerobot_physvla.lerobot_steps.PhysVLACorrectorStep"  # the old path

@@ -101,6 +101,7 @@ print(repr(float(c(np.zeros((1, 7)), st)[0, 0])))
 """
 
 
+@pytest.mark.slow
 def test_editing_one_correction_file_recompiles_the_cached_kernel(tmp_path):
     """numba's cache checks a kernel against its own file only: an edit to grasp_guidance.py must
     still reach the cached phase_step that compiles it in (closure-keyed, see branch_a.py)."""

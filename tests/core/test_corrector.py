@@ -294,6 +294,7 @@ def test_a_stream_in_one_call_equals_the_stream_in_steps(mode):
     assert one.guard_counts == steps.guard_counts and one.steps == steps.steps
 
 
+@pytest.mark.slow
 def test_arrays_the_direct_call_cannot_take_go_in_steps_with_the_same_output():
     """correct_stream calls stream_tick's compiled overload directly (no numba dispatch, no type
     check): a read-only or misaligned action, or a read-only state, must take the checked path in

@@ -17,6 +17,7 @@ def test_seed_blocks_cover_every_seed_once():
     assert seed_blocks(7, 3) == [(0, 3), (3, 3), (6, 1)]
 
 
+@pytest.mark.slow
 def test_units_run_once_and_resume(tmp_path):
     unit = Unit("expert_clean", "phys_el", PhysVLAConfig(mode="phys_el").to_dict(), task_id=0, first_seed=0, episodes=1)
     records, _ = run_units([unit], tmp_path, workers=1)
@@ -35,6 +36,7 @@ def _strip_timing(records):
     return [{k: v for k, v in r.items() if k != "t_us_p50"} for r in records]
 
 
+@pytest.mark.slow
 def test_other_scenes_and_the_ray_backend_give_the_same_records(tmp_path):
     """Fetch units (4-D layout) through a one-CPU local Ray instance equal the process pool's."""
     import ray
@@ -62,22 +64,28 @@ def test_unknown_backend_is_a_clear_error(tmp_path):
         run_units([], tmp_path, backend="dask")
 
 
-def test_a_unit_on_disk_run_with_another_configuration_is_not_reused(tmp_path):
+def test_a_cached_unit_is_keyed_by_its_configuration_and_refused_with_another_expert(tmp_path):
+    """eval/run.py names a unit by its configuration's hash: another configuration is another unit (the
+    low-pass's parameters count only while it is on); a unit cached under a backbone name whose faults
+    changed since is refused, not mixed in."""
     from harness import _check_stale
+    from store import config_hash
 
     from lerobot_physvla.core.config import PRESETS
 
-    old = Unit("expert_clean", "default", PRESETS["default"].replace(lowpass="adaptive", lowpass_alpha_max=0.8).to_dict())
+    def unit(cfg, expert=None):
+        return Unit("expert_jitter", config_hash(cfg.to_dict()), cfg.to_dict(), expert=expert or {"action_noise": 0.3})
+
+    on8 = PRESETS["default"].replace(lowpass="adaptive", lowpass_alpha_max=0.8)
+    assert unit(on8).key != unit(on8.replace(lowpass_alpha_max=0.6)).key
+    assert unit(PRESETS["default"]).key == unit(PRESETS["default"].replace(lowpass_alpha_max=0.8)).key  # off
+    old = unit(on8)
     (tmp_path / "units").mkdir()
-    (tmp_path / "units" / f"{old.key}.json").write_text(json.dumps({"unit": {"config": old.config, "expert": {}}}))
-    _check_stale([old], tmp_path)  # the same configuration: reused
-    now = Unit("expert_clean", "default", PRESETS["default"].replace(lowpass="adaptive", lowpass_alpha_max=0.6).to_dict())
-    with pytest.raises(SystemExit, match="delete it"):
-        _check_stale([now], tmp_path)
-    # the low-pass's parameters do not matter while it is off: such a unit is reused
-    off = Unit("x", "off", PRESETS["default"].replace(lowpass_alpha_max=0.8).to_dict())
-    (tmp_path / "units" / f"{off.key}.json").write_text(json.dumps({"unit": {"config": off.config, "expert": {}}}))
-    _check_stale([Unit("x", "off", PRESETS["default"].to_dict())], tmp_path)
+    (tmp_path / "units" / f"{old.key}.json").write_text(json.dumps({"unit": {"config": old.config,
+                                                                             "expert": old.expert}}))
+    _check_stale([old], tmp_path)  # the same unit: reused
+    with pytest.raises(SystemExit, match="another expert"):
+        _check_stale([unit(on8, expert={"action_noise": 0.2})], tmp_path)
 
 
 def test_a_unit_on_disk_run_with_other_weights_is_not_reused(tmp_path):

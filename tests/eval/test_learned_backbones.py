@@ -1,6 +1,7 @@
 """Learned backbones end to end: expert rollouts -> LeRobotDataset v3 -> lerobot-train -> a policy
 the harness runs (policies/record_dataset.py, policies/train_backbones.py, eval/backbones.py)."""
 
+import pytest
 import json
 import shutil
 import subprocess
@@ -71,6 +72,7 @@ def test_weak_siblings_are_earlier_checkpoints_of_a_recipe():
         assert train_backbones.checkpoint(weak).parts[-4:] == (recipe, "checkpoints", f"{step:06d}", "pretrained_model")
 
 
+@pytest.mark.slow
 def test_record_train_and_run_a_learned_backbone(tmp_path, monkeypatch):
     ds = tmp_path / "ds"
     rec = subprocess.run([sys.executable, str(ROOT / "policies/record_dataset.py"), "--tasks", "0", "--seeds", "10",
@@ -173,6 +175,7 @@ def test_record_train_and_run_a_learned_backbone(tmp_path, monkeypatch):
     assert policy.policy.config.n_action_steps == 10  # chunked: the 3 actions come from one chunk
 
 
+@pytest.mark.slow
 def test_recorded_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
     """The training data and lerobot-eval agree on what the policy sees: a recorded expert episode
     (init state 0, no DART noise), replayed action by action in `--env.type=libero_physvla

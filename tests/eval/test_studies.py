@@ -42,8 +42,9 @@ def test_every_study_readme_is_what_its_data_gives():
         assert (Study(study_mod.find(name)).results / "README.md").exists(), name
 
 
-def test_the_readme_headline_is_what_the_data_gives():
-    assert headline.current() == headline.block()
+def test_the_readme_and_results_page_tables_are_what_the_data_gives():
+    assert headline.current() == headline.readme_block()
+    assert headline.current(headline.RESULTS_MD) == headline.block().replace("](eval/results/", "](../eval/results/")
 
 
 def test_the_data_holds_every_episode():
@@ -179,6 +180,7 @@ kind = "compares"
 """
 
 
+@pytest.mark.slow
 def test_a_new_study_runs_from_its_file_and_resumes_from_its_data(tmp_path, monkeypatch):
     monkeypatch.setattr(study_mod, "RESULTS", tmp_path / "results")
     monkeypatch.setattr(run, "CACHE", tmp_path / "cache")

@@ -2,6 +2,7 @@
 policies/make_scripted_policy.py, loaded with from_pretrained, it acts as the expert does, in
 the LIBERO layout and, with --scene, in another scene's layout and geometry."""
 
+import pytest
 import subprocess
 import sys
 from pathlib import Path
@@ -41,12 +42,14 @@ def _compare(policy, expert, state_dim, steps=30):
         eef = eef + got[:3] * 0.05 + rng.normal(0, 0.002, 3)
 
 
+@pytest.mark.slow
 def test_libero_default_matches_the_expert(tmp_path):
     policy = _save(tmp_path, "--action_noise", "0.2", "--seed", "4")
     assert policy.config.output_features["action"].shape == (7,)
     _compare(policy, PickPlaceExpert(cfg=ExpertConfig(action_noise=0.2, seed=4)), 8)
 
 
+@pytest.mark.slow
 def test_fetch_scene_gives_the_4d_layout_and_the_scene_geometry(tmp_path):
     policy = _save(tmp_path, "--scene", "fetch_pick_place", "--action_noise", "0.3", "--noise_stage", "grasp")
     assert policy.config.layout == "fetch_4d" and policy.config.output_features["action"].shape == (4,)

@@ -30,6 +30,7 @@ def post_pipeline(step):
                                    to_output=transition_to_policy_action)
 
 
+@pytest.mark.slow
 def test_async_sub_envs_each_use_their_own_state_and_reset_memory_per_episode():
     cfg_env = LiberoPhysVLAEnvConfig(task="libero_spatial", task_ids=[0], cameras=False, episode_length=50)
     vec = cfg_env.create_envs(n_envs=2, use_async_envs=True)["libero_spatial"][0]
@@ -130,6 +131,7 @@ def test_episode_start_resets_the_memory_of_that_env_only():
     assert out[1, 0] == 0.0  # env 1 starts afresh
 
 
+@pytest.mark.slow
 def test_save_load_round_trip_in_a_fresh_interpreter(tmp_path):
     cfg = PhysVLAConfig(mode="phys_el", weighting="task_space", gripper_rule="veto", cap=0.07)
     path = add_corrector(tmp_path, cfg)

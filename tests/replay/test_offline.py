@@ -117,6 +117,7 @@ def test_release_in_transport_is_flagged():
     assert offline.flagged_frames(raw, st, phase, cfg) == []
 
 
+@pytest.mark.slow
 def test_ray_backend_gives_the_same_result(data):
     import ray
 

@@ -11,6 +11,8 @@ from lerobot_physvla.replay.resim import replay_resim
 
 from replay_data import COLUMN_FEATURES, REPO_ID, column_episode, write_dataset
 
+pytestmark = pytest.mark.slow  # subprocess console scripts / re-simulation
+
 
 def test_resim_reproduces_the_recorded_episode(recorded):
     data = load(REPO_ID, recorded, [0])

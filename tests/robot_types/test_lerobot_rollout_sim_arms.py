@@ -19,6 +19,8 @@ ARMS = {  # arm: (robot type, block, target)
     "panda": ("physvla_sim_panda", "[0.3,0.4,0.02]", "[0.5,-0.2,0.0]"),
 }
 
+pytestmark = pytest.mark.slow  # subprocess console scripts / re-simulation
+
 
 @pytest.mark.parametrize("arm", sorted(ARMS))
 def test_lerobot_rollout_with_the_corrector_executes_the_corrected_targets(tmp_path, arm):

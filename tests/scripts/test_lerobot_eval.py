@@ -19,6 +19,8 @@ BIN = Path(sys.executable).parent
 ROOT = Path(__file__).resolve().parents[2]
 COMMON = ["--env.task=libero_spatial", "--env.task_ids=[0]", "--policy.device=cpu"]
 
+pytestmark = pytest.mark.slow  # subprocess console scripts / re-simulation
+
 
 def run(args: list[str], env_extra: dict | None = None, timeout: int = 600) -> subprocess.CompletedProcess:
     env = {**os.environ, **(env_extra or {})}

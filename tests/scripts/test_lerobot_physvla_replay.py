@@ -14,6 +14,8 @@ from replay_data import COLUMN_FEATURES, REPO_ID, column_episode, write_dataset 
 
 from lerobot_physvla.scripts.lerobot_physvla_replay import main  # noqa: E402
 
+pytestmark = pytest.mark.slow  # subprocess console scripts / re-simulation
+
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,7 @@ def test_mujoco_is_the_pinned_version():
     assert mujoco.__version__ == "3.3.7"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("task_id", range(10))
 def test_libero_spatial_task_comes_to_rest(task_id):
     task = libero_sim.load_task("libero_spatial", task_id)
@@ -40,6 +41,7 @@ def test_unknown_suite_and_task_are_clear_errors():
         libero_sim.load_task("libero_spatial", 10)
 
 
+@pytest.mark.slow
 def test_an_episode_does_not_depend_on_the_one_before(libero_task0):
     """robosuite draws the controller's joint reference from numpy's global RNG at reset; seeding
     by init-state index makes episode k the same whatever ran before it."""
