@@ -1,3 +1,3 @@
-"""Arms the corrector reads state from on a robot: an arm's MuJoCo model and the map from the
-robot's motor names to its joints (`arms.py`), and the physical state s_t computed from joint
-readings with that model (`joint_state.py`)."""
+"""LeRobot robot types this plugin adds (like lerobot/robots/<name>/): `physvla_sim_so101` and
+`physvla_sim_panda`, MuJoCo-simulated arms behind LeRobot's `Robot` interface (their shared base:
+sim_arm.py)."""
