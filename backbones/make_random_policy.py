@@ -1,6 +1,6 @@
 """Make a LeRobot policy with random weights through lerobot's own factory, saved locally.
 
-    .venv/bin/python policies/make_random_policy.py OUT_DIR [--type act|diffusion] [--inputs state|image|so101|panda]
+    .venv/bin/python backbones/make_random_policy.py OUT_DIR [--type act|diffusion] [--inputs state|image|so101|panda]
 
 --inputs state (default): what the `libero_physvla` env gives with --env.cameras=false,
 observation.state (8: eef xyz, axis-angle, 2 finger joints) and observation.environment_state

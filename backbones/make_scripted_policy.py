@@ -1,6 +1,6 @@
 """Save the scripted expert as a LeRobot policy checkpoint (`--policy.path` loads it).
 
-    .venv/bin/python policies/make_scripted_policy.py OUT_DIR [--action_noise 0.1] [--aim_noise_m 0.01]
+    .venv/bin/python backbones/make_scripted_policy.py OUT_DIR [--action_noise 0.1] [--aim_noise_m 0.01]
         [--place_bias_m 0.03] [--premature_close 0.2] [--no_decel] [--noise_stage grasp]
         [--place_bias_units 1.7] [--seed 0] [--scene libero_spatial|lift|lift_plate|fetch_pick_place]
 

@@ -1,6 +1,6 @@
 """Record scripted-expert rollouts on LIBERO-Spatial into a local LeRobotDataset (v3), state only.
 
-    .venv/bin/python policies/record_dataset.py [--out outputs/datasets/physvla_libero_spatial]
+    .venv/bin/python backbones/record_dataset.py [--out outputs/datasets/physvla_libero_spatial]
         [--seeds 10-39] [--tasks 0-9] [--dart-sigma 0.1,0.3] [--workers 2]
 
 Each frame holds what a state-based policy sees in `lerobot-eval --env.type=libero_physvla

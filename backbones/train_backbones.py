@@ -1,9 +1,9 @@
 """Training recipes for the learned backbones: LeRobot ACT and Diffusion on the expert dataset.
 
-    .venv/bin/python policies/record_dataset.py                 # once: the dataset
-    .venv/bin/python policies/train_backbones.py act_chunk      # one recipe (or: all)
-    .venv/bin/python policies/train_backbones.py --list         # each recipe's lerobot-train command
-    python3 policies/train_backbones.py all --device cuda --num-workers 3 --parallel 3   # on a GPU
+    .venv/bin/python backbones/record_dataset.py                 # once: the dataset
+    .venv/bin/python backbones/train_backbones.py act_chunk      # one recipe (or: all)
+    .venv/bin/python backbones/train_backbones.py --list         # each recipe's lerobot-train command
+    python3 backbones/train_backbones.py all --device cuda --num-workers 3 --parallel 3   # on a GPU
 
 Each recipe is one `lerobot-train` command (printed before it runs, and saved beside the
 checkpoint as recipe.json with the device it ran on and how long it took) on the local dataset,
@@ -28,18 +28,18 @@ Weak siblings (`SIBLINGS`) are earlier checkpoints of the same runs: the same re
 early, so the corrector is judged on a weak and a strong policy of one family. Those landed below
 the 30-50 % band #9 asks for; the `_mid` siblings (`CONTINUED`, `CPU_DRAW`, `MID_CHOICE`) are in it:
 
-    .venv/bin/python policies/train_backbones.py act_chunk_mid      # continues act_chunk_weak here
-    .venv/bin/python policies/train_backbones.py act_single_mid     # continues act_single_weak here
-    .venv/bin/python policies/train_backbones.py act_single --out outputs/train/cpu_full
-    .venv/bin/python policies/train_backbones.py act_chunk --out outputs/train/cpu_full   # act_chunk_mid2
-    .venv/bin/python policies/train_backbones.py act_chunk_fine   # resumes that run from 7200 (RESUMED)
-    .venv/bin/python policies/train_backbones.py act_chunk_small --out outputs/train/cpu_full  # SMALLER
-    .venv/bin/python policies/train_backbones.py act_chunk_tiny --out outputs/train/cpu_full
-    .venv/bin/python policies/train_backbones.py act_chunk_w96 --out outputs/train/cpu_full   # fifth round
-    .venv/bin/python policies/train_backbones.py act_chunk_w112 --out outputs/train/cpu_full
-    .venv/bin/python policies/train_backbones.py act_chunk_w112_fine   # seventh round: resumes it from 4800
-    .venv/bin/python policies/train_backbones.py act_chunk_few5 --out outputs/train/cpu_full   # eighth: FEWER
-    .venv/bin/python policies/train_backbones.py act_chunk_few10 --out outputs/train/cpu_full
+    .venv/bin/python backbones/train_backbones.py act_chunk_mid      # continues act_chunk_weak here
+    .venv/bin/python backbones/train_backbones.py act_single_mid     # continues act_single_weak here
+    .venv/bin/python backbones/train_backbones.py act_single --out outputs/train/cpu_full
+    .venv/bin/python backbones/train_backbones.py act_chunk --out outputs/train/cpu_full   # act_chunk_mid2
+    .venv/bin/python backbones/train_backbones.py act_chunk_fine   # resumes that run from 7200 (RESUMED)
+    .venv/bin/python backbones/train_backbones.py act_chunk_small --out outputs/train/cpu_full  # SMALLER
+    .venv/bin/python backbones/train_backbones.py act_chunk_tiny --out outputs/train/cpu_full
+    .venv/bin/python backbones/train_backbones.py act_chunk_w96 --out outputs/train/cpu_full   # fifth round
+    .venv/bin/python backbones/train_backbones.py act_chunk_w112 --out outputs/train/cpu_full
+    .venv/bin/python backbones/train_backbones.py act_chunk_w112_fine   # seventh round: resumes it from 4800
+    .venv/bin/python backbones/train_backbones.py act_chunk_few5 --out outputs/train/cpu_full   # eighth: FEWER
+    .venv/bin/python backbones/train_backbones.py act_chunk_few10 --out outputs/train/cpu_full
     .venv/bin/python eval/run.py learned_mid
 
 Normalisation: lerobot 0.6.1's ACT and Diffusion configs normalise only the VISUAL, STATE and
@@ -236,7 +236,7 @@ def _episodes_meta(dataset: str, columns: list[str]):
     files = sorted((Path(dataset) / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
     if not files:
         raise SystemExit(f"train_backbones: no episode metadata under {dataset}/meta/episodes; run "
-                         "policies/record_dataset.py first")
+                         "backbones/record_dataset.py first")
     # one thread: pyarrow's reader pool otherwise aborts some interpreters at exit ("terminate called")
     return pd.concat([pd.read_parquet(f, columns=columns, use_threads=False) for f in files])
 
@@ -362,7 +362,7 @@ def _commit() -> str:
 def train(name: str, dataset: str, out_root: str, steps: int | None = None, device: str = "cpu",
           num_workers: int = 0, raw_env: bool = False) -> Path:
     if not (Path(dataset) / "meta" / "info.json").exists():
-        raise SystemExit(f"train_backbones: no dataset at {dataset}; run policies/record_dataset.py first")
+        raise SystemExit(f"train_backbones: no dataset at {dataset}; run backbones/record_dataset.py first")
     if name in CONTINUED:
         cmd = continued_command(name, dataset, out_root, steps, device, num_workers)
     elif name in RESUMED:

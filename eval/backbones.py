@@ -6,7 +6,7 @@ kind it is.
 
 - Scripted experts (`ExpertBackbone`): experts.PickPlaceExpert with the paper's failure modes
   injected (BACKBONES below), geometry from the scene (`scene.expert`).
-- Learned backbones (`LeRobotBackbone`): a LeRobot policy checkpoint (policies/train_backbones.py)
+- Learned backbones (`LeRobotBackbone`): a LeRobot policy checkpoint (backbones/train_backbones.py)
   with its own pre/post-processors (normalisation), fed the state observation that
   `lerobot-eval --env.type=libero_physvla --env.cameras=false` gives it.
 """

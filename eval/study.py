@@ -12,7 +12,7 @@
 
     [backbones]                        # a scripted expert with faults, or a trained LeRobot policy
     expert_jitter = {expert = {action_noise = 0.3, aim_noise_m = 0.015}}
-    act_single = {policy = "act_single"}          # a recipe of policies/train_backbones.py, or a path
+    act_single = {policy = "act_single"}          # a recipe of backbones/train_backbones.py, or a path
 
     [configs]                          # a preset plus overrides (PhysVLAConfig fields), or plain fields
     baseline = {mode = "baseline"}
@@ -191,7 +191,7 @@ class Study:
             return p
         import sys
 
-        sys.path.insert(0, str(ROOT / "policies"))
+        sys.path.insert(0, str(ROOT / "backbones"))
         import train_backbones
 
         return train_backbones.trained_or_committed(spec, checkpoints)

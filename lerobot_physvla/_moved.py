@@ -1,4 +1,4 @@
-"""Import paths of the flat 0.1 layout, kept working: `lerobot_physvla.<old>` -> where it lives now.
+"""Import paths that moved, kept working: `lerobot_physvla.<old>` -> where it lives now.
 
 A postprocessor saved before the layout moved names its step by class path
 (`"class": "lerobot_physvla.lerobot_steps.PhysVLACorrectorStep"`); lerobot imports that path when
@@ -23,7 +23,7 @@ MOVED: dict[str, tuple[str, ...]] = {
     f"{P}.phase": (f"{P}.core.phase", f"{P}.core.branch_a"),
     f"{P}.dynamics": (f"{P}.core.dynamics",),
     f"{P}.corrector": (f"{P}.core.corrector",),
-    f"{P}.robosuite_source": (f"{P}.sim.robosuite_source",),
+    f"{P}.robosuite_source": (f"{P}.sources.robosuite",),
     f"{P}.libero_setup": (f"{P}.sim.libero_setup",),
     f"{P}.libero_sim": (f"{P}.sim.libero_sim",),
     f"{P}.lift_sim": (f"{P}.sim.lift_sim",),
@@ -40,8 +40,21 @@ MOVED: dict[str, tuple[str, ...]] = {
     f"{P}.scripted_policy.configuration_physvla_scripted": (
         f"{P}.policies.physvla_scripted.configuration_physvla_scripted",),
     f"{P}.scripted_policy.modeling_physvla_scripted": (f"{P}.policies.physvla_scripted.modeling_physvla_scripted",),
+    # names with one meaning (0.2): LeRobot robot types under robots/, arm models under arms/, state sources
+    # under sources/, Branch B's noise guard beside Branch B
+    f"{P}.robots.arms": (f"{P}.arms.model",),
+    f"{P}.robots.joint_targets": (f"{P}.arms.joint_targets",),
+    f"{P}.robots.joint_state": (f"{P}.sources.joint_state",),
+    f"{P}.robots.noise_guard": (f"{P}.core.noise_guard",),
+    f"{P}.sim.robosuite_source": (f"{P}.sources.robosuite",),
+    f"{P}.robot_types": (f"{P}.robots",),
+    f"{P}.robot_types.sim_arm": (f"{P}.robots.sim_arm",),
+    **{f"{P}.robot_types.{arm}{sub}": (f"{P}.robots.{arm}{sub}",)
+       for arm in ("physvla_sim_so101", "physvla_sim_panda")
+       for sub in ("", f".{arm}", f".config_{arm}")},
 }
-_PACKAGES = {f"{P}.scripted_policy"}
+_PACKAGES = {f"{P}.scripted_policy", f"{P}.robot_types", f"{P}.robot_types.physvla_sim_so101",
+             f"{P}.robot_types.physvla_sim_panda"}
 
 
 class _MovedLoader(importlib.abc.Loader):

@@ -30,7 +30,7 @@ def activate(argv: list[str] | None = None) -> None:
     from lerobot_physvla.envs import libero_physvla  # noqa: F401
     from lerobot_physvla.policies import physvla_scripted  # noqa: F401
     from lerobot_physvla.processor import physvla_processor, physvla_robot_step  # noqa: F401
-    from lerobot_physvla.robot_types import physvla_sim_panda, physvla_sim_so101  # noqa: F401  (robot types)
+    from lerobot_physvla.robots import physvla_sim_panda, physvla_sim_so101  # noqa: F401  (robot types)
 
     argv = sys.argv if argv is None else argv
     if argv and Path(argv[0]).name in ("lerobot-rollout", "lerobot_rollout.py"):

@@ -63,7 +63,7 @@ REPLAY_REPO_ID = "local/replay_test"  # tests/replay/replay_data.REPO_ID
 @pytest.fixture(scope="session")
 def scripted_policy(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("policy") / "scripted"
-    r = subprocess.run([sys.executable, str(ROOT / "policies/make_scripted_policy.py"), str(out)],
+    r = subprocess.run([sys.executable, str(ROOT / "backbones/make_scripted_policy.py"), str(out)],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     return out

@@ -1,7 +1,7 @@
 """The package's architecture, checked statically from the import statements (no module is run).
 
 Layers, each importing only the ones before it:
-    core (the algorithm)  <-  sim, robots  <-  LeRobot integration  <-  scripts  <-  plugin
+    core (the algorithm)  <-  sources, arms, sim  <-  LeRobot integration (robots/ included)  <-  scripts  <-  plugin
 and no import cycle anywhere in lerobot_physvla, function-level (lazy) imports included.
 """
 
@@ -17,9 +17,9 @@ PKG = Path(__file__).resolve().parents[1] / "lerobot_physvla"
 NAME = "lerobot_physvla"
 RANK = {
     "core": 0,
-    "sim": 1, "robots": 1,
+    "sim": 1, "sources": 1, "arms": 1,
     "compat": 2, "flags": 2, "diagnostics": 2, "metrics": 2, "report": 2, "processor": 2, "envs": 2, "policies": 2, "replay": 2,
-    "robot_types": 2,
+    "robots": 2,
     "scripts": 3,
     "plugin": 4,
 }
@@ -108,9 +108,9 @@ def test_algorithm_imports_only_numpy_numba_mujoco(mod):
             "mujoco, the standard library and lerobot_physvla.core")
 
 
-def test_simulators_never_import_lerobot():
+def test_simulators_state_sources_and_arms_never_import_lerobot():
     for mod, path in MODULES.items():
-        if top_level(mod) in ("sim", "robots"):
+        if top_level(mod) in ("sim", "sources", "arms"):
             deps = imports_of(path.read_text(), mod, path.name == "__init__.py")
             assert not any(d.split(".")[0] == "lerobot" for d in deps), f"{mod} imports lerobot"
 

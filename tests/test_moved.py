@@ -74,16 +74,16 @@ def test_old_names_that_moved_to_a_second_module_still_resolve():
 
 def test_shipped_presets_name_the_new_class_path():
     for mode in ("baseline", "temporal", "phys", "phys_el"):
-        steps = json.loads((ROOT / f"policies/physvla_configs/{mode}/policy_postprocessor.json").read_text())["steps"]
+        steps = json.loads((ROOT / f"configs/{mode}/policy_postprocessor.json").read_text())["steps"]
         assert steps[-1]["class"] == "lerobot_physvla.processor.physvla_processor.PhysVLACorrectorStep"
         assert steps[-1]["config"]["config"]["mode"] == mode
 
 
 def test_the_committed_preset_files_hold_the_presets_of_this_code():
-    """policies/physvla_configs/preset_<name> is what a user downloads to get a preset: it must be
+    """configs/preset_<name> is what a user downloads to get a preset: it must be
     PRESETS[name] field for field (regenerate with lerobot-physvla-config --write-presets)."""
     from lerobot_physvla.core.config import PRESETS, PhysVLAConfig
 
     for name, preset in PRESETS.items():
-        steps = json.loads((ROOT / f"policies/physvla_configs/preset_{name}/policy_postprocessor.json").read_text())
+        steps = json.loads((ROOT / f"configs/preset_{name}/policy_postprocessor.json").read_text())
         assert PhysVLAConfig.from_dict(steps["steps"][-1]["config"]["config"]) == preset, name

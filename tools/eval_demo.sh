@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 out="${1:-outputs/eval/physvla_demo}"
-.venv/bin/python policies/make_scripted_policy.py outputs/policies/scripted --aim_noise_m 0.01
+.venv/bin/python backbones/make_scripted_policy.py outputs/policies/scripted --aim_noise_m 0.01
 rm -rf "$out"
 set -x
 .venv/bin/lerobot-eval --policy.path=outputs/policies/scripted --env.type=libero_physvla --env.cameras=false \

@@ -39,7 +39,7 @@ def main() -> None:
     subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", str(other), args.rev], check=True,
                    capture_output=True)
     policy = tmp / "scripted"
-    subprocess.run([sys.executable, str(ROOT / "policies/make_scripted_policy.py"), str(policy)], check=True,
+    subprocess.run([sys.executable, str(ROOT / "backbones/make_scripted_policy.py"), str(policy)], check=True,
                    capture_output=True)
     trees = {args.rev: other, "this checkout": ROOT}
     results: dict[str, list[tuple[float, float]]] = {name: [] for name in trees}

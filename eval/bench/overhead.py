@@ -54,7 +54,7 @@ from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.core.direct_call import direct_entry
 from lerobot_physvla.core.tick import stream_tick
 from lerobot_physvla.sim.experts import PickPlaceExpert
-from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+from lerobot_physvla.sources.robosuite import RobosuiteStateSource
 from lerobot_physvla.core.state import PhysState
 from lerobot_physvla.diagnostics import EpisodeRecorder
 from lerobot_physvla.processor.physvla_processor import (
@@ -242,7 +242,7 @@ import json, time, numpy as np, torch
 t_start = time.perf_counter()
 from lerobot.lerobot_types import TransitionKey
 from lerobot_physvla.sim import libero_sim
-from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+from lerobot_physvla.sources.robosuite import RobosuiteStateSource
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.diagnostics import EpisodeRecorder
 from lerobot_physvla.processor.physvla_processor import PhysVLAStateCaptureStep, PhysVLACorrectorStep
@@ -280,7 +280,7 @@ import json, sys, time, warnings
 warnings.simplefilter("ignore")
 policy, batch, episodes, out_dir, flags = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4], sys.argv[5:]
 from lerobot_physvla.envs.libero_physvla import PhysVLAStateExport
-from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+from lerobot_physvla.sources.robosuite import RobosuiteStateSource
 from lerobot_physvla.processor.physvla_processor import PhysVLAStateCaptureStep, PhysVLACorrectorStep
 clock = time.perf_counter
 events = []  # (what, seconds) in call order
@@ -540,7 +540,7 @@ def main() -> None:
     print("whole path inside lerobot-eval (B = 1, 8) ...", flush=True)
     tmp = Path(tempfile.mkdtemp(prefix="physvla_bench_"))
     policy = tmp / "scripted"
-    subprocess.run([sys.executable, str(ROOT / "policies/make_scripted_policy.py"), str(policy)], check=True,
+    subprocess.run([sys.executable, str(ROOT / "backbones/make_scripted_policy.py"), str(policy)], check=True,
                    capture_output=True)
     runs = (("phys_el", 1, ("--physvla.mode=phys_el",)), ("phys_el", 8, ("--physvla.mode=phys_el",)),
             ("shipped default", 1, ()), ("smooth preset", 1, ("--physvla.preset=smooth",)),

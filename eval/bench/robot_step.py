@@ -33,8 +33,8 @@ from lerobot.processor.factory import make_default_robot_action_processor
 
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
-from lerobot_physvla.robot_types.physvla_sim_panda import SimPanda, SimPandaConfig
-from lerobot_physvla.robot_types.physvla_sim_so101 import SimSO101, SimSO101Config
+from lerobot_physvla.robots.physvla_sim_panda import SimPanda, SimPandaConfig
+from lerobot_physvla.robots.physvla_sim_so101 import SimSO101, SimSO101Config
 
 def policy(robot, t: int) -> dict:
     """A slow sweep of every joint around the arm's start (20 deg on the SO-101, 5 on the Panda), the

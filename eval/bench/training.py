@@ -3,7 +3,7 @@
     .venv/bin/python eval/bench/training.py [--recipes act_single,act_chunk,diffusion_chunk]
         [--num-workers 0,1] [--steps 400] [--out eval/results/bench_training]
 
-Each recipe of policies/train_backbones.py runs for --steps steps with each --num-workers value,
+Each recipe of backbones/train_backbones.py runs for --steps steps with each --num-workers value,
 one run at a time (nothing else should run beside it), through the recipe's own lerobot-train
 command (only --steps, --num_workers and the output directory differ). lerobot-train logs, every
 --log-freq steps, the mean time a step spent waiting for data (`data_s`) and updating the model
@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "policies"))
+sys.path.insert(0, str(ROOT / "backbones"))
 import train_backbones  # noqa: E402
 
 LOG = re.compile(r"step:(\S+) .*updt_s:([0-9.]+) data_s:([0-9.]+)")
@@ -70,7 +70,7 @@ def main() -> None:
     ap.add_argument("--out", default=str(ROOT / "eval" / "results" / "bench_training"))
     args = ap.parse_args()
     if not (Path(args.dataset) / "meta" / "info.json").exists():
-        raise SystemExit(f"bench_training: no dataset at {args.dataset}; run policies/record_dataset.py first")
+        raise SystemExit(f"bench_training: no dataset at {args.dataset}; run backbones/record_dataset.py first")
     names, workers = args.recipes.split(","), [int(w) for w in args.num_workers.split(",")]
     rows = []
     for n in names:

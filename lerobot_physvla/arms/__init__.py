@@ -1,3 +1,3 @@
-"""Arms the corrector reads state from on a robot: an arm's MuJoCo model and the map from the
-robot's motor names to its joints (`arms.py`), and the physical state s_t computed from joint
-readings with that model (`joint_state.py`)."""
+"""Robot arms: an arm's MuJoCo model and the map from a robot's motor names to its joints
+(`model.py`: so101, panda, or your own MJCF), and the corrected joint targets sent back to it
+(`joint_targets.py`). The state read from an arm's joints is sources/joint_state.py."""

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from lerobot_physvla.core.config import ActionLayout
-from lerobot_physvla.robots.arms import ArmModel
+from lerobot_physvla.arms.model import ArmModel
 
 # [dx, dy, dz, g]: 0.1 m per unit and bounds of +-10 units, so that no realistic tick is clipped
 VIRTUAL = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, metres_per_unit=0.1, gripper_open=-1.0, low=-10.0,

@@ -21,7 +21,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from lerobot_physvla.core.dynamics import MujocoDynamicsOracle
+from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
 
 
 class ArmError(ValueError):
@@ -121,7 +121,7 @@ def arm_spec(arm: str | ArmSpec) -> ArmSpec:
         return arm
     if arm not in ARMS:
         raise ArmError(f"physvla: unknown arm {arm!r}; known: {', '.join(sorted(ARMS))} "
-                       "(add one with lerobot_physvla.robots.arms.register_arm(ArmSpec(...)), docs/arms.md)")
+                       "(add one with lerobot_physvla.arms.model.register_arm(ArmSpec(...)), docs/arms.md)")
     return ARMS[arm]
 
 

@@ -413,7 +413,7 @@ class Corrector:
 
     def set_branch_b(self, on: bool) -> None:
         """Run Branch B (the EL gate) from the next call on, or not: for a caller that finds its
-        residual meaningless on a tick (e.g. dominated by sensor noise, robots/noise_guard.py).
+        residual meaningless on a tick (e.g. dominated by sensor noise, core/noise_guard.py).
         Nothing changes for a mode without Branch B."""
         if self.branch_b is None or bool(on) == self._b_on:
             return

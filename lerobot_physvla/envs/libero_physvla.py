@@ -104,7 +104,7 @@ class PhysVLAStateExport(gym.Wrapper):
         return obs
 
     def reset(self, **kwargs):
-        from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+        from lerobot_physvla.sources.robosuite import RobosuiteStateSource
 
         if not self.cameras:
             self._build_without_renderer()

@@ -2,8 +2,8 @@
 
 `lerobot-rollout` sends every action through `robot_action_processor((action_dict, raw_observation))`
 (lerobot/rollout/strategies/core.py). This step reads the arm's joint positions from the raw
-observation, computes s_t with the arm's MuJoCo model (robots/joint_state.py), reads the
-joint-target action as the Cartesian move it proposes (robots/joint_targets.py), corrects it, and
+observation, computes s_t with the arm's MuJoCo model (sources/joint_state.py), reads the
+joint-target action as the Cartesian move it proposes (arms/joint_targets.py), corrects it, and
 writes the corrected joint and gripper targets back into the action dict. Keys the correction
 did not change are returned exactly as the policy sent them.
 
@@ -33,10 +33,10 @@ from lerobot_physvla.core.config import ARM_PRESET, PRESETS, PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.core.state import field_offsets
 from lerobot_physvla.processor.physvla_processor import _unregister_name_for_saving
-from lerobot_physvla.robots.arms import ArmError, ArmModel
-from lerobot_physvla.robots.joint_state import JointStateSource
-from lerobot_physvla.robots.joint_targets import VIRTUAL, JointTargetAdapter
-from lerobot_physvla.robots.noise_guard import BranchBNoiseGuard
+from lerobot_physvla.arms.model import ArmError, ArmModel
+from lerobot_physvla.sources.joint_state import JointStateSource
+from lerobot_physvla.arms.joint_targets import VIRTUAL, JointTargetAdapter
+from lerobot_physvla.core.noise_guard import BranchBNoiseGuard
 
 
 TIMES_KEPT = 10_000  # ticks whose times summary() takes its percentiles over
@@ -56,19 +56,19 @@ class PhysVLARobotActionStep(ProcessorStep):
     """Corrects a robot arm's joint-target action dict (lerobot-rollout's robot action processor).
 
     Attributes:
-        arm: a known arm (robots/arms.py ARMS: so101, panda, or one registered).
+        arm: a known arm (arms/model.py ARMS: so101, panda, or one registered).
         fps: the control rate, Hz (dt = 1 / fps for the joint velocities).
         object_xyz, target_xyz: fixed object / target points in the arm model's frame, m; or
         object_key, target_key: raw-observation keys holding them (a perception step fills them).
         config: PhysVLAConfig fields (default: the `arm` preset, the approach veto alone); the action layout is
-            the virtual Cartesian one (robots/joint_targets.py) and Branch B weights task-space.
+            the virtual Cartesian one (arms/joint_targets.py) and Branch B weights task-space.
         arm_geometry: the approach veto uses the arm's own gripper geometry (ArmSpec.veto_height_m,
             veto_reach_m) where the arm gives it, in place of the config's (tuned on LIBERO's Panda).
         velocity_cutoff_hz: low-pass cutoff of the joint velocities, Hz (None: unfiltered).
         state_delay_s: the readings' age when they arrive, s; positions are carried forward by it.
         reading_noise_deg: the joint readings' noise std, degrees; None: estimated from the readings.
         noise_snr_min: with Branch B (mode phys_el), it runs on a tick only when its residual is at
-            least this many times the residual's noise std (robots/noise_guard.py); 0: always.
+            least this many times the residual's noise std (core/noise_guard.py); 0: always.
         branch_b_off: Counter of the reasons Branch B was off on a tick (noise_unknown, noise_dominated,
             guard_error).
         ticks, changed: control ticks seen, and how many changed the gripper / joint targets
@@ -208,7 +208,7 @@ class PhysVLARobotActionStep(ProcessorStep):
         return out
 
     def _guard_branch_b(self, row: np.ndarray, a_raw: np.ndarray, j_pos: np.ndarray) -> None:
-        """Branch B on or off for this tick, by the noise guard (robots/noise_guard.py)."""
+        """Branch B on or off for this tick, by the noise guard (core/noise_guard.py)."""
         f, n, src = self._f, self._n, self.source
         dt = row[f["dt"]]
         v = a_raw[list(VIRTUAL.pos)] * (VIRTUAL.metres_per_unit / dt)  # m/s, as Branch B reads it

@@ -2,7 +2,7 @@
 (`physvla_sim_so101`, `physvla_sim_panda`), so that the code path that drives a real arm
 (lerobot-rollout, the robot action processor) runs in CI.
 
-Observations and actions use the arm's LeRobot keys and units (robots/arms.py `ArmSpec`):
+Observations and actions use the arm's LeRobot keys and units (arms/model.py `ArmSpec`):
 "<motor>.pos" for the arm joints (degrees or radians, as the real robot reports them) and
 "gripper.pos" 0 (closed) .. 100 (open); the observation also carries "block.x", "block.y",
 "block.z" (the block's position, m; float features, since lerobot reads a tuple-shaped feature as a
@@ -22,7 +22,7 @@ import numpy as np
 from lerobot.robots.config import RobotConfig
 from lerobot.robots.robot import Robot
 
-from lerobot_physvla.robots.arms import ArmSpec, arm_spec
+from lerobot_physvla.arms.model import ArmSpec, arm_spec
 
 BLANK = np.zeros((8, 8, 3), np.uint8)  # the blank camera's frame (blank_camera)
 

@@ -1,7 +1,7 @@
 """`lerobot-physvla-config`: add the corrector to a policy checkpoint's postprocessor.
 
     lerobot-physvla-config POLICY_DIR [--preset default] [--mode phys_el] [--physvla.<field>=<value> ...]
-    lerobot-physvla-config --write-presets policies/physvla_configs
+    lerobot-physvla-config --write-presets configs
     lerobot-physvla-config POLICY_DIR --physvla.arm=so101 --physvla.object_key=block --physvla.target_xyz=[0.3,-0.2,0]
 
 With no flag it adds the `default` preset (the evidence-chosen default, docs/method.md); `--mode`
@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> None:
 
     argv = sys.argv[1:] if argv is None else argv
     from lerobot_physvla.flags import ROBOT_FLAGS
-    from lerobot_physvla.robots.arms import ArmError
+    from lerobot_physvla.arms.model import ArmError
 
     try:
         _, overrides, rest = split_argv(argv, robot=True)

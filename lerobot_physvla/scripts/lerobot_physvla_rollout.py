@@ -25,7 +25,7 @@ from pathlib import Path
 from lerobot_physvla import compat
 from lerobot_physvla.core.config import ARM_PRESET
 from lerobot_physvla.flags import ROBOT_FLAGS, FlagError, build_config, split_argv
-from lerobot_physvla.robots.arms import ArmError
+from lerobot_physvla.arms.model import ArmError
 
 ROBOT_PROCESSOR = "physvla_robot_processor.json"  # the arm's corrector, saved beside a policy
 

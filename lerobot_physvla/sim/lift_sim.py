@@ -83,7 +83,7 @@ class LiftScene:
     horizon = HORIZON
 
     def __init__(self, plate: bool = False):
-        from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+        from lerobot_physvla.sources.robosuite import RobosuiteStateSource
 
         self.plate = plate
         self.name = "lift_plate" if plate else "lift"

@@ -3,7 +3,7 @@
 A `Scene` is one env with its state source, seen the same way by every simulator: `reset(seed)`
 starts a seeded, reproducible episode; `read()` gives the corrector's `PhysState` (B = 1);
 `step(action)` executes one action in the env's own layout and returns (success now, reward).
-The harness (eval/harness.py), the dataset recorder (policies/record_dataset.py) and the tests
+The harness (eval/harness.py), the dataset recorder (backbones/record_dataset.py) and the tests
 drive LIBERO, robosuite Lift and gymnasium-robotics Fetch through it.
 
 Scenes by name (`make_scene`):
@@ -66,7 +66,7 @@ class LiberoScene:
 
     def reset(self, seed: int) -> None:
         from lerobot_physvla.sim import libero_sim
-        from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+        from lerobot_physvla.sources.robosuite import RobosuiteStateSource
 
         self.raw_obs = libero_sim.reset_to_init_state(self.env, self.task, seed)
         if self.source is None:

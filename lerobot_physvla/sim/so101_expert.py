@@ -30,7 +30,7 @@ from lerobot_env_so101.ik_control import control_point, roll_to_align_axis, solv
 from lerobot_env_so101.mujoco_env import grasp_point_offset
 from lerobot_env_so101.scripted.pick_place import Phase, PickPlaceController
 
-from lerobot_physvla.robots.arms import ARMS, resolve_mjcf
+from lerobot_physvla.arms.model import ARMS, resolve_mjcf
 
 CONTROL_HZ = 10  # lerobot-env-so101's SO101PickPlace control rate (control_dt = 0.1 s)
 ACTION_SCALE_M = 0.025  # its metres per unit of the controller's Cartesian step

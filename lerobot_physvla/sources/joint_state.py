@@ -20,7 +20,7 @@ from collections import Counter
 import numpy as np
 
 from lerobot_physvla.core.state import field_offsets, packed_size
-from lerobot_physvla.robots.arms import ArmError, ArmModel, ArmSpec
+from lerobot_physvla.arms.model import ArmError, ArmModel, ArmSpec
 
 
 NOISE_WINDOW = 30  # readings over which the reading noise is estimated (1 s at 30 Hz)

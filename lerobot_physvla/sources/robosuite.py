@@ -16,7 +16,7 @@ from collections import Counter
 import mujoco
 import numpy as np
 
-from lerobot_physvla.core.dynamics import MujocoDynamicsOracle
+from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
 from lerobot_physvla.core.state import PhysState, field_offsets, packed_size
 
 _GOAL_PREDICATES = ("on", "in")

@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from lerobot_physvla.robots.arms import ARMS, ArmError, ArmModel, ArmSpec, arm_spec, register_arm
+from lerobot_physvla.arms.model import ARMS, ArmError, ArmModel, ArmSpec, arm_spec, register_arm
 
 # a third arm, as a user would add one: a 3-joint planar arm with a tip site
 THREE_LINK = """

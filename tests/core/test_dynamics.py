@@ -13,7 +13,7 @@ from lerobot_physvla.core.dynamics import (
     proposed_qddot,
     task_space_weights,
 )
-from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+from lerobot_physvla.sources.robosuite import RobosuiteStateSource
 
 from conftest import make_state
 
@@ -173,7 +173,7 @@ def test_compiled_live_read_equals_mj_fullM_on_a_branching_tree(joints):
     m = mujoco.MjModel.from_xml_string(_TREE)
     d = _random_tree_data(m, 0)
     mujoco.mj_forward(m, d)
-    from lerobot_physvla.core.dynamics import MujocoDynamicsOracle
+    from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
     from lerobot_physvla.core.state import PhysState, packed_size
 
     oracle = MujocoDynamicsOracle(m, joints, eef_site="tip")
@@ -192,7 +192,7 @@ def test_the_one_buffer_read_equals_the_field_by_field_read(eef, constraint, fin
     """read_live_into reads every field through one view of the MjData buffer and computes the
     Jacobian itself (pack_live_buf); the field-by-field read with MuJoCo's mj_jacSite /
     mj_jacBody (pack_live_row) gives the same row, bit for bit."""
-    from lerobot_physvla.core.dynamics import MujocoDynamicsOracle
+    from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
     from lerobot_physvla.core.state import packed_size
 
     m = mujoco.MjModel.from_xml_string(_TREE)

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from lerobot_physvla.core.dynamics import qddot_row, residual_row
-from lerobot_physvla.robots.arms import ArmModel
-from lerobot_physvla.robots.noise_guard import (NOISE_DOMINATED, NOISE_UNKNOWN, BranchBNoiseGuard,
+from lerobot_physvla.arms.model import ArmModel
+from lerobot_physvla.core.noise_guard import (NOISE_DOMINATED, NOISE_UNKNOWN, BranchBNoiseGuard,
                                                 residual_noise_std)
 
 DT, DAMP = 1 / 30, 1e-2

@@ -139,7 +139,7 @@ def test_a_chunked_policy_gets_the_chunk_caps_and_every_other_backbone_the_caps(
     monkeypatch.setattr(harness, "_scene", lambda name: SimpleNamespace(layout=LIBERO_OSC_POSE, expert={}))
     monkeypatch.setattr("lerobot_physvla.core.corrector.Corrector", lambda cfg: built.append(cfg))
     cfg = preset("default", chunk_phase_caps=(1.0, 0.05, 0.0, 1.0))
-    ckpts = Path(__file__).resolve().parents[2] / "policies" / "checkpoints"
+    ckpts = Path(__file__).resolve().parents[2] / "backbones" / "checkpoints"
     for policy in ("", str(ckpts / "act_single"), str(ckpts / "act_chunk")):
         unit = Unit("expert_clean" if not policy else Path(policy).name, "c", cfg.to_dict(), 0, 0, 0, policy=policy)
         harness.compute_unit(unit)

@@ -1,5 +1,5 @@
 """Learned backbones end to end: expert rollouts -> LeRobotDataset v3 -> lerobot-train -> a policy
-the harness runs (policies/record_dataset.py, policies/train_backbones.py, eval/backbones.py)."""
+the harness runs (backbones/record_dataset.py, backbones/train_backbones.py, eval/backbones.py)."""
 
 import pytest
 import json
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "policies"))
+sys.path.insert(0, str(ROOT / "backbones"))
 sys.path.insert(0, str(ROOT / "eval"))
 import record_dataset  # noqa: E402
 import train_backbones  # noqa: E402
@@ -75,14 +75,14 @@ def test_weak_siblings_are_earlier_checkpoints_of_a_recipe():
 @pytest.mark.slow
 def test_record_train_and_run_a_learned_backbone(tmp_path, monkeypatch):
     ds = tmp_path / "ds"
-    rec = subprocess.run([sys.executable, str(ROOT / "policies/record_dataset.py"), "--tasks", "0", "--seeds", "10",
+    rec = subprocess.run([sys.executable, str(ROOT / "backbones/record_dataset.py"), "--tasks", "0", "--seeds", "10",
                           "--dart-sigma", "0.1", "--workers", "1", "--out", str(ds)], capture_output=True, text=True, cwd=ROOT)
     assert rec.returncode == 0, rec.stderr[-2000:]
     info = json.loads((ds / "meta" / "info.json").read_text())
     assert info["total_episodes"] == 1 and info["features"]["observation.environment_state"]["shape"] == [6]
     assert 50 < info["total_frames"] < 280  # one successful expert episode
 
-    train = subprocess.run([sys.executable, str(ROOT / "policies/train_backbones.py"), "act_chunk", "--dataset", str(ds),
+    train = subprocess.run([sys.executable, str(ROOT / "backbones/train_backbones.py"), "act_chunk", "--dataset", str(ds),
                             "--out", str(tmp_path / "train"), "--steps", "2"], capture_output=True, text=True, cwd=ROOT)
     assert train.returncode == 0, train.stdout[-2000:] + train.stderr[-2000:]
     ckpt = train_backbones.checkpoint("act_chunk", str(tmp_path / "train"))
@@ -90,7 +90,7 @@ def test_record_train_and_run_a_learned_backbone(tmp_path, monkeypatch):
     assert recipe["recipe"] == "act_chunk" and recipe["steps"] == 2 and "CPU" in recipe["device"]
     assert "--num_workers=1" in recipe["command"]  # the CPU default: batches read beside the update
     # data-loader workers change how fast a recipe trains, not what it learns
-    again = subprocess.run([sys.executable, str(ROOT / "policies/train_backbones.py"), "act_chunk", "--dataset", str(ds),
+    again = subprocess.run([sys.executable, str(ROOT / "backbones/train_backbones.py"), "act_chunk", "--dataset", str(ds),
                             "--out", str(tmp_path / "train0"), "--steps", "2", "--num-workers", "0"],
                            capture_output=True, text=True, cwd=ROOT)
     assert again.returncode == 0, again.stderr[-2000:]
@@ -99,7 +99,7 @@ def test_record_train_and_run_a_learned_backbone(tmp_path, monkeypatch):
 
     # a `_mid` sibling continues a committed checkpoint: lerobot-train takes its config and weights
     # (--policy.path) with only the run's own settings named, and the recipe names what it continued
-    mid = subprocess.run([sys.executable, str(ROOT / "policies/train_backbones.py"), "act_chunk_mid", "--dataset",
+    mid = subprocess.run([sys.executable, str(ROOT / "backbones/train_backbones.py"), "act_chunk_mid", "--dataset",
                           str(ds), "--out", str(tmp_path / "train"), "--steps", "2"], capture_output=True, text=True,
                          cwd=ROOT)
     assert mid.returncode == 0, mid.stdout[-2000:] + mid.stderr[-2000:]
@@ -182,7 +182,7 @@ def test_recorded_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
     --env.cameras=false` through lerobot-eval's observation path (preprocess_observation + the
     env's preprocessor), gives at every frame the observation lerobot-train reads from the dataset."""
     ds = tmp_path / "ds"
-    rec = subprocess.run([sys.executable, str(ROOT / "policies/record_dataset.py"), "--tasks", "0", "--seeds", "0",
+    rec = subprocess.run([sys.executable, str(ROOT / "backbones/record_dataset.py"), "--tasks", "0", "--seeds", "0",
                           "--dart-sigma", "0", "--workers", "1", "--out", str(ds)], capture_output=True, text=True,
                          cwd=ROOT)
     assert rec.returncode == 0, rec.stderr[-2000:]
@@ -214,7 +214,7 @@ def test_recorded_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
 
 
 def test_the_committed_checkpoints_are_the_weights_the_published_table_ran():
-    """policies/checkpoints holds the GPU-trained ACT backbones (and the `_mid` siblings trained from
+    """backbones/checkpoints holds the GPU-trained ACT backbones (and the `_mid` siblings trained from
     them or beside them on this CPU): each one's weights are the ones every
     episode of eval/results/learned recorded for it, and the harness runs it (on the CPU) with no
     training here. A retrained or replaced file would fail the first assertion."""

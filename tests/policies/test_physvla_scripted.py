@@ -1,5 +1,5 @@
 """The scripted expert as a LeRobot policy (`physvla_scripted`): saved with
-policies/make_scripted_policy.py, loaded with from_pretrained, it acts as the expert does, in
+backbones/make_scripted_policy.py, loaded with from_pretrained, it acts as the expert does, in
 the LIBERO layout and, with --scene, in another scene's layout and geometry."""
 
 import pytest
@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def _save(tmp_path, *args) -> PhysVLAScriptedPolicy:
     out = tmp_path / "policy"
-    done = subprocess.run([sys.executable, str(ROOT / "policies/make_scripted_policy.py"), str(out), *args],
+    done = subprocess.run([sys.executable, str(ROOT / "backbones/make_scripted_policy.py"), str(out), *args],
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-2000:]
     return PhysVLAScriptedPolicy.from_pretrained(str(out))

@@ -10,8 +10,8 @@ from lerobot.processor import RobotProcessorPipeline
 from lerobot.processor.converters import robot_action_observation_to_transition, transition_to_robot_action
 
 from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
-from lerobot_physvla.robots.arms import ArmError, ArmModel
-from lerobot_physvla.robots.joint_targets import VIRTUAL, JointTargetAdapter
+from lerobot_physvla.arms.model import ArmError, ArmModel
+from lerobot_physvla.arms.joint_targets import VIRTUAL, JointTargetAdapter
 
 MOTORS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
 EEF_AT_ZERO = ArmModel("so101").eef_at(np.zeros(5))  # (0.391, 0, 0.227) m

@@ -27,7 +27,7 @@ def write_dataset(root: Path, features: dict, episodes: list[dict], robot_type: 
     return root
 
 
-COLUMN_FEATURES = {  # what policies/record_dataset.py (the training recorder) writes: no physical state
+COLUMN_FEATURES = {  # what backbones/record_dataset.py (the training recorder) writes: no physical state
     "observation.state": {"dtype": "float32", "shape": (8,), "names": None},
     "observation.environment_state": {"dtype": "float32", "shape": (6,), "names": None},
     "action": {"dtype": "float32", "shape": (7,), "names": None},

@@ -19,8 +19,8 @@ from lerobot.processor.converters import robot_action_observation_to_transition,
 
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
-from lerobot_physvla.robot_types.physvla_sim_panda import SimPanda, SimPandaConfig
-from lerobot_physvla.robot_types.physvla_sim_so101 import SimSO101, SimSO101Config
+from lerobot_physvla.robots.physvla_sim_panda import SimPanda, SimPandaConfig
+from lerobot_physvla.robots.physvla_sim_so101 import SimSO101, SimSO101Config
 
 NOISE_DEG = 0.024
 WARM = 30  # ticks before the reading-noise estimate and the velocity filter settle

@@ -26,7 +26,7 @@ pytestmark = pytest.mark.slow  # subprocess console scripts / re-simulation
 def test_lerobot_rollout_with_the_corrector_executes_the_corrected_targets(tmp_path, arm):
     robot, block, target = ARMS[arm]
     policy = tmp_path / f"act_{arm}"
-    r = subprocess.run([sys.executable, str(ROOT / "policies/make_random_policy.py"), str(policy), "--inputs", arm],
+    r = subprocess.run([sys.executable, str(ROOT / "backbones/make_random_policy.py"), str(policy), "--inputs", arm],
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     rollout = str(Path(sys.executable).parent / "lerobot-rollout")

@@ -9,8 +9,8 @@ import numpy as np
 
 from lerobot.robots.utils import make_robot_from_config
 
-from lerobot_physvla.robots.arms import EEF_SITE, ArmModel
-from lerobot_physvla.robot_types.physvla_sim_panda import SimPanda, SimPandaConfig
+from lerobot_physvla.arms.model import EEF_SITE, ArmModel
+from lerobot_physvla.robots.physvla_sim_panda import SimPanda, SimPandaConfig
 
 JOINTS = tuple(f"joint{i}" for i in range(1, 8))
 

@@ -10,7 +10,7 @@ from lerobot.processor.converters import robot_action_observation_to_transition,
 from lerobot.robots.utils import make_robot_from_config
 
 from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
-from lerobot_physvla.robot_types.physvla_sim_so101 import SimSO101, SimSO101Config
+from lerobot_physvla.robots.physvla_sim_so101 import SimSO101, SimSO101Config
 
 ARM = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
 
@@ -63,8 +63,8 @@ def _residuals(tmp_path, noise_deg: float, delay_ticks: int, cutoff, compensate_
     delayed) readings, one value per tick after the first second."""
     from lerobot_physvla.core.config import PhysVLAConfig
     from lerobot_physvla.core.corrector import Corrector
-    from lerobot_physvla.robots.joint_state import JointStateSource
-    from lerobot_physvla.robots.joint_targets import VIRTUAL, JointTargetAdapter
+    from lerobot_physvla.sources.joint_state import JointStateSource
+    from lerobot_physvla.arms.joint_targets import VIRTUAL, JointTargetAdapter
 
     robot = SimSO101(SimSO101Config(joint_noise_deg=noise_deg, reading_delay_ticks=delay_ticks, calibration_dir=tmp_path))
     robot.connect()

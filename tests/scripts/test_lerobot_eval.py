@@ -32,7 +32,7 @@ def policies(tmp_path_factory):
     d = tmp_path_factory.mktemp("policies")
     out = {}
     for inputs in ("state", "image"):
-        r = run([sys.executable, str(ROOT / "policies/make_random_policy.py"), str(d / inputs), "--inputs", inputs])
+        r = run([sys.executable, str(ROOT / "backbones/make_random_policy.py"), str(d / inputs), "--inputs", inputs])
         assert r.returncode == 0, r.stderr[-3000:]
         out[inputs] = d / inputs
     return out

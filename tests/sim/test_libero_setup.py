@@ -27,7 +27,7 @@ def test_setup_is_idempotent_and_libero_imports_without_a_prompt():
 
 def test_check_names_the_fix_when_the_config_is_missing(tmp_path, monkeypatch):
     monkeypatch.setenv("LIBERO_CONFIG_PATH", str(tmp_path))
-    with pytest.raises(libero_setup.LiberoSetupError, match="scripts/setup.sh"):
+    with pytest.raises(libero_setup.LiberoSetupError, match="tools/setup.sh"):
         libero_setup.check()
 
 

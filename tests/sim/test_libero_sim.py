@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from lerobot_physvla.sim import libero_sim
-from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource
+from lerobot_physvla.sources.robosuite import RobosuiteStateSource
 
 
 def test_mujoco_is_the_pinned_version():

@@ -13,7 +13,7 @@ from lerobot.processor import RobotProcessorPipeline
 from lerobot.processor.converters import robot_action_observation_to_transition, transition_to_robot_action
 
 from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
-from lerobot_physvla.robot_types.physvla_sim_so101 import SimSO101, SimSO101Config
+from lerobot_physvla.robots.physvla_sim_so101 import SimSO101, SimSO101Config
 from lerobot_physvla.sim.so101_expert import CONTROL_HZ, SO101ExpertConfig, SO101PickPlaceExpert
 
 BLOCK, GOAL = [0.25, -0.05, 0.02], [0.18, 0.06, 0.02]

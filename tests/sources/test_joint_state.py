@@ -8,8 +8,8 @@ import pytest
 from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.core.state import PhysState
-from lerobot_physvla.robots.arms import ArmError, ArmModel
-from lerobot_physvla.robots.joint_state import JointStateSource
+from lerobot_physvla.arms.model import ArmError, ArmModel
+from lerobot_physvla.sources.joint_state import JointStateSource
 
 MOTORS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
 

@@ -11,7 +11,7 @@ from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.sim.experts import PickPlaceExpert
 from lerobot_physvla.core.phase import Phase
-from lerobot_physvla.sim.robosuite_source import RobosuiteStateSource, goal_object_and_target
+from lerobot_physvla.sources.robosuite import RobosuiteStateSource, goal_object_and_target
 
 
 def test_object_and_target_come_from_the_bddl_goal(libero_task0):

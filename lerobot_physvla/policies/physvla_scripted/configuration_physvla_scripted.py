@@ -4,7 +4,7 @@ It reads only what the state-only `libero_physvla` env gives every policy:
 observation.state[:3] (end-effector xyz) and observation.environment_state (object xyz,
 target xyz). Failure modes of the paper are injectable and seeded (see experts.ExpertConfig);
 `layout` and `expert` (waypoint geometry) fit it to another scene's action layout and objects
-(policies/make_scripted_policy.py --scene lift|lift_plate|fetch_pick_place).
+(backbones/make_scripted_policy.py --scene lift|lift_plate|fetch_pick_place).
 """
 
 from __future__ import annotations

@@ -6,13 +6,13 @@ from dataclasses import dataclass, field
 
 from lerobot.robots.config import RobotConfig
 
-from lerobot_physvla.robot_types.sim_arm import SimArmConfig
+from lerobot_physvla.robots.sim_arm import SimArmConfig
 
 
 @RobotConfig.register_subclass("physvla_sim_panda")
 @dataclass
 class SimPandaConfig(SimArmConfig):
-    """A simulated Panda with a block on the floor (the fields: robot_types/sim_arm.py
+    """A simulated Panda with a block on the floor (the fields: robots/sim_arm.py
     `SimArmConfig`).
 
     Attributes:

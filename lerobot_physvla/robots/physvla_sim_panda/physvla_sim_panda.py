@@ -1,6 +1,6 @@
-"""A MuJoCo-simulated Franka Panda behind LeRobot's `Robot` interface (robot_types/sim_arm.py).
+"""A MuJoCo-simulated Franka Panda behind LeRobot's `Robot` interface (robots/sim_arm.py).
 
-Scene, built from the arm model the corrector uses (robosuite's Panda, robots/arms.py): the torque
+Scene, built from the arm model the corrector uses (robosuite's Panda, arms/model.py): the torque
 motors replaced by a position servo per joint (gravity compensated, as Franka's controller does),
 a two-finger parallel gripper of 0.08 m opening on the hand, a floor and a 4 cm block. Keys: "joint1.pos" ..
 "joint7.pos" in radians, "gripper.pos" 0 (closed) .. 100 (open).
@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import mujoco
 
-from lerobot_physvla.robots.arms import ARMS, arm_mjspec
-from lerobot_physvla.robot_types.physvla_sim_panda.config_physvla_sim_panda import SimPandaConfig
-from lerobot_physvla.robot_types.sim_arm import SimArm
+from lerobot_physvla.arms.model import ARMS, arm_mjspec
+from lerobot_physvla.robots.physvla_sim_panda.config_physvla_sim_panda import SimPandaConfig
+from lerobot_physvla.robots.sim_arm import SimArm
 
 KP, KV = 400.0, 40.0  # joint servos, N m / rad and N m s / rad
 FINGER_TRAVEL_M = 0.04  # each finger; the opening is twice this

