@@ -24,7 +24,7 @@ def feed(rec, corr, steps, success, executed):
 
 
 def test_recorder_splits_episodes_and_stops_at_success(tmp_path):
-    rec, corr = EpisodeRecorder(horizon=10), Corrector(PhysVLAConfig(), 2)
+    rec, corr = EpisodeRecorder(horizon=10), Corrector(PhysVLAConfig.paper(), 2)
     feed(rec, corr, [0, 0], [0, 0], 0.0)
     feed(rec, corr, [1, 1], [0, 0], 0.5)  # both executed 0.5 at step 0
     feed(rec, corr, [2, 2], [1, 0], 0.6)  # env 0 succeeded with its step-1 action
@@ -44,7 +44,7 @@ def test_recorder_splits_episodes_and_stops_at_success(tmp_path):
 
 
 def test_recording_grows_past_its_first_capacity_and_keeps_states(tmp_path):
-    rec, corr = EpisodeRecorder(save_states=True), Corrector(PhysVLAConfig(), 2)
+    rec, corr = EpisodeRecorder(save_states=True), Corrector(PhysVLAConfig.paper(), 2)
     n = 2 * rec_capacity() + 10  # one episode per env, longer than twice the first capacity
     for t in range(n):
         feed(rec, corr, [t, t], [0, 0], 0.1)
@@ -65,7 +65,7 @@ def rec_capacity() -> int:
 def test_a_listener_call_copies_what_it_keeps():
     """The step hands the recorder arrays it reuses (the corrector's diag buffer): a record must
     not change when they are overwritten."""
-    rec, corr = EpisodeRecorder(), Corrector(PhysVLAConfig(), 2)
+    rec, corr = EpisodeRecorder(), Corrector(PhysVLAConfig.paper(), 2)
     feed(rec, corr, [0, 0], [0, 0], 0.0)
     phase0 = rec.episodes[0].phase.copy()
     corr.diag_buffer[:] = 7.0
@@ -88,7 +88,7 @@ def test_finished_batches_are_compacted_with_the_same_records_and_flat_memory():
     lay = LAYOUTS["libero_osc_pose"]
     full = EpisodeRecorder(layout=lay, keep_steps=None)
     compact = EpisodeRecorder(layout=lay, keep_steps=3)
-    c1, c2 = Corrector(PhysVLAConfig(), 2), Corrector(PhysVLAConfig(), 2)
+    c1, c2 = Corrector(PhysVLAConfig.paper(), 2), Corrector(PhysVLAConfig.paper(), 2)
     _run_batches(full, c1, 2, 30)
     _run_batches(compact, c2, 2, 30)
     rows_after_two = compact._seg.raw.nbytes
@@ -120,7 +120,7 @@ def test_a_batch_ended_between_rollouts_compacts_there_with_the_same_records():
 
     lay = LAYOUTS["libero_osc_pose"]
     in_tick, between = EpisodeRecorder(layout=lay, keep_steps=3), EpisodeRecorder(layout=lay, keep_steps=3)
-    c1, c2 = Corrector(PhysVLAConfig(), 2), Corrector(PhysVLAConfig(), 2)
+    c1, c2 = Corrector(PhysVLAConfig.paper(), 2), Corrector(PhysVLAConfig.paper(), 2)
     log = []
     finish = between._finish
     between._finish = lambda: (log.append("finish"), finish())[1]

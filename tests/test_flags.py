@@ -32,10 +32,10 @@ def test_which_configuration_the_flags_build():
     from lerobot_physvla.core.config import PRESETS, PhysVLAConfig
 
     assert build_config({}) == PRESETS["default"]  # --policy.postprocess=physvla alone
-    assert build_config({"mode": "phys_el"}) == PhysVLAConfig(mode="phys_el")  # a paper mode, one flag away
+    assert build_config({"mode": "phys_el"}) == PhysVLAConfig.paper(mode="phys_el")  # a paper mode, one flag away
     assert build_config({"preset": "paper_alg1"}) == PRESETS["paper_alg1"]
     assert build_config({"preset": "default", "lowpass": "off"}) == PRESETS["default"].replace(lowpass="off")
     _, overrides, _ = split_argv(["--physvla.preset=paper", "--physvla.phase_caps=0,0,0,1"])
-    assert build_config(overrides) == PhysVLAConfig(mode="phys_el", phase_caps=(0.0, 0.0, 0.0, 1.0))
+    assert build_config(overrides) == PhysVLAConfig.paper(mode="phys_el", phase_caps=(0.0, 0.0, 0.0, 1.0))
     with pytest.raises(FlagError, match="choose one of"):
         split_argv(["--physvla.preset=turbo"])

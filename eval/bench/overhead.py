@@ -64,12 +64,12 @@ from lerobot_physvla.processor.physvla_processor import (
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = {
     "no-op (identity function)": None,
-    "baseline mode (phases only)": PhysVLAConfig(mode="baseline"),
-    "temporal": PhysVLAConfig(mode="temporal"),
-    "phys": PhysVLAConfig(mode="phys"),
-    "phys_el joint_diag": PhysVLAConfig(mode="phys_el"),
-    "phys_el task_space": PhysVLAConfig(mode="phys_el", weighting="task_space"),
-    "phys_el gated": PhysVLAConfig(mode="phys_el", el_mode="gated"),
+    "baseline mode (phases only)": PhysVLAConfig.paper(mode="baseline"),
+    "temporal": PhysVLAConfig.paper(mode="temporal"),
+    "phys": PhysVLAConfig.paper(mode="phys"),
+    "phys_el joint_diag": PhysVLAConfig.paper(mode="phys_el"),
+    "phys_el task_space": PhysVLAConfig.paper(mode="phys_el", weighting="task_space"),
+    "phys_el gated": PhysVLAConfig.paper(mode="phys_el", el_mode="gated"),
     "shipped default": PRESETS[DEFAULT_PRESET],
     "smooth preset": PRESETS["smooth"],
 }
@@ -164,7 +164,7 @@ def whole_path(episodes: int, steps: int, warm_repeats: int = 3) -> dict:
     runs warm_repeats times back to back."""
     task = libero_sim.load_task("libero_spatial", 0)
     env = libero_sim.make_libero_env(task)
-    cfg = PhysVLAConfig(mode="phys_el").to_dict()
+    cfg = PhysVLAConfig.paper(mode="phys_el").to_dict()
     steps_of = {}
     for path in ("B=1", "B=8", COPIED):
         bus = f"bench-{path}"
@@ -252,7 +252,7 @@ env = libero_sim.make_libero_env(task)
 libero_sim.reset_to_init_state(env, task, 0)
 t0 = time.perf_counter()
 src = RobosuiteStateSource(env.env); src.reset()
-cap, cor = PhysVLAStateCaptureStep(bus="first"), PhysVLACorrectorStep(config=PhysVLAConfig(mode="phys_el").to_dict(), bus="first")
+cap, cor = PhysVLAStateCaptureStep(bus="first"), PhysVLACorrectorStep(config=PhysVLAConfig.paper(mode="phys_el").to_dict(), bus="first")
 cor.listeners.append(EpisodeRecorder())
 t_build = time.perf_counter() - t0
 act = torch.zeros(1, 7)
@@ -439,7 +439,7 @@ def memory(rows: np.ndarray, actions: np.ndarray, steps: int = 100_000) -> dict:
     out = {}
     for name, listen in (("step", False), ("step + recorder", True)):
         cap = PhysVLAStateCaptureStep(bus="mem")
-        cor = PhysVLACorrectorStep(config=PhysVLAConfig(mode="phys_el").to_dict(), bus="mem")
+        cor = PhysVLACorrectorStep(config=PhysVLAConfig.paper(mode="phys_el").to_dict(), bus="mem")
         if listen:
             cor.listeners.append(EpisodeRecorder())
         obs = [_obs(r[None].copy(), np.zeros((1, 9))) for r in rows]

@@ -63,7 +63,7 @@ def bench(case: str, ticks: int, fps: float) -> dict:
                               calibration_dir=Path(tempfile.mkdtemp())))
     robot.connect()
     base = make_default_robot_action_processor()
-    kw = {} if mode is None else {"config": PhysVLAConfig(mode=mode).to_dict()}
+    kw = {} if mode is None else {"config": PhysVLAConfig.paper(mode=mode).to_dict()}
     step = PhysVLARobotActionStep(arm=robot.spec.name, fps=fps, object_key="block", target_xyz=target, **kw)
     corrected = RobotProcessorPipeline(steps=[*make_default_robot_action_processor().steps, step],
                                        to_transition=robot_action_observation_to_transition,

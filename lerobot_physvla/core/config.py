@@ -112,161 +112,89 @@ LAYOUTS: dict[str, ActionLayout] = {"libero_osc_pose": LIBERO_OSC_POSE, "fetch_4
 
 @dataclass
 class PhysVLAConfig:
-    """Every hyperparameter of the corrector, with the paper's values as defaults.
+    """The corrector's configuration. `PhysVLAConfig()` is the shipped default, what
+    `--policy.postprocess=physvla` applies; `PhysVLAConfig.paper(**changes)` is the paper's main text
+    with every option beyond it off; `preset(name, **changes)` is any named preset (PRESETS).
+    docs/method.md gives every field its equation, unit and evidence. The fields, by concept:
 
-    Attributes:
+    What runs, on which action vector
         mode: baseline (identity) | temporal (uniform EMA) | phys (Branch A) | phys_el (A + B).
-        layout: name of a preset in LAYOUTS, or an ActionLayout.
-        cap: blender cap c of eq. (2).
-        delta_grasp_m: phase envelope delta_grasp of eq. (3) and the approach veto, metres.
-        h_lift_m: object height above its resting height that counts as "lifted", metres
-            (SPEC; the paper never states it).
-        beta: grasp-phase waypoint blend.
-        grasp_offset_m: grasp waypoint p* = object position + this offset, metres (world frame).
-        lift_bias_m: transport vertical lift bias Delta z+, metres.
-        alpha_transport: transport-only EMA on the position channels.
-        d_thresh_m: placement deceleration scale of eq. (5), metres.
-        alpha_temporal: uniform EMA of the `temporal` baseline mode (position channels).
-        el_mode: soft (always on, rho = 1) | gated (fires when |r_EL| > eps) | off.
-        weighting: joint_diag (paper: joint weights on action entries) | task_space.
-        eps_nm: gate threshold epsilon, N m.
-        r0_nm: residual at which the gated weight saturates (rho = 1), N m.
-        dls_damping: damping lambda of the damped least-squares Jacobian pseudo-inverse, m.
-        gripper_rule: blend (paper literal: gripper goes through the capped blender) |
-            veto (the approach veto sets the gripper channel to open in full).
-        chunk: for (B, T, A) action chunks: correct all steps with the current state, or only
-            the first (the one about to execute) and pass the rest through.
-
-    Beyond the paper (docs/method.md "Options beyond the paper"; defaults keep the paper's method):
-        phase_caps: per-phase authority (approach, grasp, transport, place) replacing the one cap c
-            of eq. (2) in that phase; empty = c in every phase.
-        chunk_phase_caps: per-phase authority for a policy that executes open-loop action chunks
-            (more than one action per policy call: ACT's or Diffusion's n_action_steps > 1), in
-            place of phase_caps; empty = phase_caps for every policy. Resolved when the corrector
-            is built for a policy (`for_policy`); the per-step correction never sees it.
-        veto_height_m: with gripper_rule=veto, a close commanded in the grasp phase while the
-            end-effector is more than this above the object's origin is vetoed too (the fingers are
-            above the object: no grasp can close on it), metres; 0 = approach phase only.
-        veto_reach_m: with gripper_rule=veto, the approach-phase veto applies only where the hand is
-            at least this far from the object's origin horizontally, or above veto_height_m: nearer
-            and lower, open fingers can still straddle a rim or a handle (LIBERO bowls: radius
-            ~0.06 m + half the Panda's 0.08 m opening = 0.10 m), metres; 0 = everywhere in approach.
-        veto_reopen: with gripper_rule=veto, the veto may also open a gripper whose last executed
-            command was closed (True, as the veto was first built) or only keeps an open gripper
-            open (False): a closed gripper may hold the object, and opening it drops it (measured:
-            a LIBERO bowl held by its rim hangs 0.060 m below the hand, at veto_height_m, while the
-            phase is still grasp; eval/results/efficacy section 7b).
-        place_rule: decelerate (eq. 5) | redirect (place: the horizontal channels steer the held
-            object's centre over the target's, redirect_gain (p_tgt - p_obj) / scale) |
-            release_veto (place: only while the policy opens the gripper with the object off the
-            target, the gripper is held closed and the object steered as by redirect).
-        redirect_gain: gain of the place redirection, action units per action unit of error (1 =
-            close the whole horizontal error in one step if the controller tracked perfectly).
-        redirect_tol_m: the place redirection leaves the policy's own x, y while the held object's
-            centre is within this of the target's, and steers only the error beyond it, metres
-            (0 = steer onto the exact centre); with place_rule=release_veto, a release with the
-            object's centre further than this from the target's is held back.
-        hold_steps: place_rule=release_veto holds a release back for at most this many control
-            steps in a row, then lets the policy's command through.
-        release_carry: with place_rule=release_veto, (1) the phase stays place while the object
-            carried there is still at the hand (within 0.10 m), also once it is set down, (2) the
-            hand does not rise while a release is held back, (3) a hold steers to half of
-            redirect_tol_m before it lets the policy's open through (docs/method.md: the traced
-            failures of the release veto).
-        release_assist_m: with place_rule=release_veto, open the gripper for a policy that holds
-            the object still over the target (centre within redirect_tol_m horizontally, at most
-            this far above the target's, the target at the object's resting level) for
-            assist_steps control steps, commanding closed; kept open while the phase stays place.
-            Metres; 0 = off (corrections/release_assist.py: the traced failure).
-        assist_steps: control steps in a row the hold must last before release_assist_m opens (and
-            before lift_assist_u lifts).
-        assist_still: what makes a hold still for release_assist_m: action (every position
-            channel of the policy's command below 0.05 action units, each step) | hand (the
-            end effector within 3 mm of where the hold began, whatever the policy commands: a
-            chunked ACT that holds still commands a small swing inside each chunk).
-        lift_assist_u: grasp phase: lift a policy's hand that holds something (fingers stopped at
-            least 2.5 mm apart, gripper commanded closed) and stays still without lifting it, for
-            assist_steps control steps: the z command is raised to at least this many action units
-            until the object is lifted out of the grasp phase (or the hand has risen 8 cm without
-            it); 0 = off (corrections/lift_assist.py: the traced failure). Delta layouts only; it
-            acts with the grasp phase's authority (phase_caps), so it needs that above 0.
-        lift_assist_at_rest: with lift_assist_u: lift only an object that lies at its resting height or
-            above it (no more than 1 cm below): one carried below where it rested (picked from a
-            shelf, carried down to a lower target) is in the grasp phase by eq. 3 but is being
-            carried, and a pause there is the policy's.
-        rim_guide_m: approach phase: a hand that has settled low beside the object (within 0.14 m of
-            its origin horizontally, below 0.15 m above it, moved under 1 cm in 5 control steps),
-            outside delta_grasp, with the policy not commanding closed, is pulled horizontally to
-            this distance from the object's origin along the line it stands on, until it enters
-            the grasp phase or the policy closes (corrections/rim_guide.py: the traced failure);
-            metres, 0 = off. Delta layouts only; it acts with the approach phase's authority, so it
-            needs that above 0, and the approach phase's candidate then leaves the gripper to the
-            policy and the gripper rule (the paper's approach veto is not added to it).
-        rim_guide_into_grasp: with rim_guide_m: a pull begun in the approach phase goes on in the grasp
-            phase (inside delta_grasp) until the hand is within 5 mm of rim_guide_m from the object's
-            origin, rises out of the zone or the policy closes; it never begins there
-            (corrections/rim_guide.py: the traced failure, a hand chattering at delta_grasp). It acts
-            with the grasp phase's authority, so it needs that above 0.
-        phase_ref: what d_tgt_xy of eq. (3) measures from once the object is lifted: eef (paper)
-            | object (the held object's centre; a rim grasp holds it centimetres off the hand).
-        lowpass: off | adaptive: a low-pass on the executed position channels whose strength
-            follows the policy's own step-to-step roughness (0 for a smooth policy).
-        lowpass_phases: the phases (comma-separated names) where the low-pass acts.
-        lowpass_space: action | target: what the low-pass filters on a delta layout: the emitted
-            increments (action) or the position they command, end effector + increment (target;
-            the state feeds back through the filter, so a closed-loop policy's correction is not
-            delayed into an oscillation). The same on absolute layouts.
-        lowpass_speed_hi: > 0: the low-pass fades out as the policy's intended speed (an EMA of its
-            raw increments over the position channels, action units per step) reaches this; 0: off.
-        lowpass_alpha_max: the low-pass's strongest smoothing factor (EMA alpha) in [0, 1).
-        lowpass_rough_lo, lowpass_rough_hi: roughness (action units: the estimated standard
-            deviation of the policy's step-to-step noise, per channel) at which the low-pass starts
-            acting and at which it reaches alpha_max.
-        lowpass_rough: ema | median: the roughness estimate: an EMA of squared step-to-step changes
-            (ema), or the median of the last 9 absolute second differences (median: a change the
-            policy means, such as a chunk boundary, is one value in 9 and moves it little).
-        lowpass_lag: trail | compensate: a target filtered in target space (or on an absolute
-            layout) trails a constant-speed move, executed at (1 - alpha) of its speed (trail), or
-            leads by alpha / (1 - alpha) of the policy's intended speed, which removes that lag
-            (compensate).
+        layout: a name in LAYOUTS or an ActionLayout.
+    The blender (eq. 2)
+        cap: the authority c of the corrected action.
+        phase_caps: per-phase authority (approach, grasp, transport, place), replacing cap; () = cap.
+        chunk_phase_caps: phase_caps for a policy that executes open-loop chunks (for_policy); () = phase_caps.
+        chunk: all | first: which steps of a (B, T, A) chunk are corrected.
+        gripper_rule: blend (the gripper goes through the blender) | veto (the approach veto opens it in full).
+    The phase machine (eq. 3)
+        delta_grasp_m: the grasp envelope, m.  h_lift_m: lift that counts as lifted, m.
+        phase_ref: eef | object: what the place distance measures from once the object is lifted.
+    Branch A, the paper's corrections (App. A)
+        beta, grasp_offset_m (m): grasp guidance.  lift_bias_m (m), alpha_transport: transport smoothing.
+        d_thresh_m (m): place deceleration (eq. 5).  place_rule: decelerate | redirect | release_veto.
+        redirect_gain: gain of the place redirection (action units per action unit of error).
+    The gripper veto: veto_height_m (m), veto_reach_m (m), veto_reopen.
+    The release veto: redirect_tol_m (m), hold_steps (control steps), release_carry.
+    The release assist (corrections/release_assist.py): release_assist_m (m; 0 = off), assist_steps, assist_still.
+    The lift assist (corrections/lift_assist.py): lift_assist_u (action units; 0 = off), lift_assist_at_rest.
+    The rim guide (corrections/rim_guide.py): rim_guide_m (m; 0 = off), rim_guide_into_grasp.
+    Branch B (eq. 4-6)
+        el_mode: soft | gated | off.  weighting: joint_diag | task_space.
+        eps_nm, r0_nm: the gate's threshold and saturation, N m.  dls_damping: the pseudo-inverse's damping, m.
+    The temporal mode: alpha_temporal (the EMA's factor).
+    The adaptive low-pass (core/lowpass.py): lowpass (off | adaptive), lowpass_phases, lowpass_space
+        (action | target), lowpass_speed_hi (action units per step; 0 = off), lowpass_alpha_max,
+        lowpass_rough_lo / _hi (action units), lowpass_rough (ema | median), lowpass_lag (trail | compensate).
     """
 
-    mode: str = "phys_el"
+    # --- what runs, on which action vector
+    mode: str = "phys"
     layout: str | ActionLayout = "libero_osc_pose"
+    # --- the blender (eq. 2)
     cap: float = 0.05
+    phase_caps: tuple[float, ...] = (1.0, 1.0, 0.0, 1.0)
+    chunk_phase_caps: tuple[float, ...] = ()
+    chunk: str = "all"
+    gripper_rule: str = "veto"
+    # --- the phase machine (eq. 3)
     delta_grasp_m: float = 0.06
     h_lift_m: float = 0.02
-    beta: float = 0.5
+    phase_ref: str = "object"
+    # --- Branch A: the paper's corrections (App. A)
+    beta: float = 0.0
     grasp_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     lift_bias_m: float = 0.02
     alpha_transport: float = 0.92
     d_thresh_m: float = 0.08
-    alpha_temporal: float = 0.85
+    place_rule: str = "release_veto"
+    redirect_gain: float = 0.5
+    # --- the gripper veto
+    veto_height_m: float = 0.06
+    veto_reach_m: float = 0.10
+    veto_reopen: bool = False
+    # --- the release veto
+    redirect_tol_m: float = 0.02
+    hold_steps: int = 40
+    release_carry: bool = True
+    # --- the release assist
+    release_assist_m: float = 0.04
+    assist_steps: int = 10
+    assist_still: str = "hand"
+    # --- the lift assist
+    lift_assist_u: float = 0.5
+    lift_assist_at_rest: bool = True
+    # --- the rim guide
+    rim_guide_m: float = 0.047
+    rim_guide_into_grasp: bool = False
+    # --- Branch B (eq. 4-6)
     el_mode: str = "soft"
     weighting: str = "joint_diag"
     eps_nm: float = 0.05
     r0_nm: float = 1.5
     dls_damping: float = 1e-2
-    gripper_rule: str = "blend"
-    chunk: str = "all"
-    phase_caps: tuple[float, ...] = ()
-    chunk_phase_caps: tuple[float, ...] = ()
-    veto_height_m: float = 0.0
-    veto_reach_m: float = 0.0
-    veto_reopen: bool = True
-    place_rule: str = "decelerate"
-    redirect_gain: float = 0.5
-    redirect_tol_m: float = 0.0
-    hold_steps: int = 40
-    release_carry: bool = False
-    release_assist_m: float = 0.0
-    assist_steps: int = 10
-    assist_still: str = "action"
-    lift_assist_u: float = 0.0
-    lift_assist_at_rest: bool = False
-    rim_guide_m: float = 0.0
-    rim_guide_into_grasp: bool = False
-    phase_ref: str = "eef"
+    # --- the temporal mode
+    alpha_temporal: float = 0.85
+    # --- the adaptive low-pass
     lowpass: str = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
     lowpass_space: str = "action"
@@ -276,6 +204,11 @@ class PhysVLAConfig:
     lowpass_rough_hi: float = 0.2
     lowpass_rough: str = "ema"
     lowpass_lag: str = "trail"
+
+    @classmethod
+    def paper(cls, **changes) -> PhysVLAConfig:
+        """The paper's main text (eq. 2 with c = 0.05, Phys + Dyn: phys_el), every option beyond it off."""
+        return cls(**{**PAPER, **changes})
 
     def __post_init__(self) -> None:
         self.validate()
@@ -401,7 +334,10 @@ class PhysVLAConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> PhysVLAConfig:
-        d = dict(d)
+        """From to_dict()'s form (a saved policy_postprocessor.json, a flag set). A field the dict does not
+        hold takes the value it had before it existed, the paper's (PAPER): a configuration saved by an
+        older version acts as it did."""
+        d = {**PAPER, **dict(d)}
         unknown = set(d) - {f.name for f in dataclasses.fields(cls)}
         if unknown:
             raise ValueError(f"physvla: unknown config keys {sorted(unknown)}")
@@ -417,36 +353,26 @@ class PhysVLAConfig:
 
 
 
-# Named presets. `default` is what `--policy.postprocess=physvla` applies with no further flag,
-# chosen by measurement (eval/results/efficacy); the paper's two readings stay one flag away.
+# What the paper's main text sets where the shipped default (the field defaults above) departs from it.
+PAPER: dict = {"mode": "phys_el", "phase_caps": (), "gripper_rule": "blend", "phase_ref": "eef", "beta": 0.5,
+               "place_rule": "decelerate", "veto_height_m": 0.0, "veto_reach_m": 0.0, "veto_reopen": True,
+               "redirect_tol_m": 0.0, "release_carry": False, "release_assist_m": 0.0, "assist_still": "action",
+               "lift_assist_u": 0.0, "lift_assist_at_rest": False, "rim_guide_m": 0.0}
+
+# Named presets. `default` is what `--policy.postprocess=physvla` applies with no further flag and what
+# PhysVLAConfig() gives, chosen by measurement (docs/method.md "Presets", docs/decisions/); the paper's two
+# readings stay one flag away.
 PRESETS: dict[str, PhysVLAConfig] = {
     # the main text: eq. (2), a = (1 - c) a_raw + c a_B with c = 0.05, Phys + Dyn (phys_el)
-    "paper": PhysVLAConfig(mode="phys_el"),
+    "paper": PhysVLAConfig.paper(),
     # the supplement's Algorithm 1: Phys executes a_phys in full, Dyn blends w a_phys + (1 - w) a_raw
-    "paper_alg1": PhysVLAConfig(mode="phys_el", cap=1.0),
-    # beyond the paper (docs/method.md): only corrections that are right from the state alone: the
-    # gripper veto where no finger can reach the object (keeping an open gripper open, never opening
-    # a closed one: it may hold the object), the release veto where the held object would land more
-    # than 2 cm off the target (kept in force while a carried object is set down: release_carry), and
-    # the release assist: a policy that holds the object still over the target, closed, is let go
-    # (candidate 10, shipped 2026-11-25), a hold judged still by the hand, not by the command (candidate 12,
-    # shipped 2026-11-25: a chunked ACT's command swings inside each chunk while its hand holds still;
-    # docs/method.md); and the lift assist: a policy that holds the object closed and still in the grasp
-    # phase without lifting it is lifted (candidate 15, shipped 2026-11-25: weaker single-step ACTs close
-    # on a bowl's rim and then hold it there to the end), with the grasp phase's authority 1 and the
-    # paper's grasp guidance off (beta 0: the lift is the grasp phase's only change), an object carried
-    # below where it rested left alone (candidate 16, shipped 2026-11-25: a pause while carrying a bowl
-    # down from its rest is the policy's); and the rim guide: a hand settled beside the object, outside
-    # where a grasp can close on it, is pulled onto 4.7 cm from its origin until it enters the grasp
-    # phase, with the approach phase's authority 1 (candidate 17's configuration, shipped 2026-11-25 as
-    # candidate 18: the learned ACTs +4.3 pp pooled, 15 pairs won and none lost, on blocks no decision
-    # had looked at; docs/method.md)
-    "default": PhysVLAConfig(
-        mode="phys", phase_caps=(1.0, 1.0, 0.0, 1.0), beta=0.0, gripper_rule="veto", veto_height_m=0.06,
-        veto_reach_m=0.10, veto_reopen=False, place_rule="release_veto", redirect_tol_m=0.02, release_carry=True,
-        phase_ref="object", release_assist_m=0.04, assist_still="hand", lift_assist_u=0.5, lift_assist_at_rest=True,
-        rim_guide_m=0.047,
-    ),
+    "paper_alg1": PhysVLAConfig.paper(cap=1.0),
+    # beyond the paper: only corrections that are right from the state alone (docs/method.md): the gripper
+    # veto where no finger can reach the object (never opening a closed gripper), the release veto where the
+    # held object would land more than 2 cm off the target, the release assist for a still hold over the
+    # target, the lift assist for a still, closed, unlifted hold, the rim guide for a hand settled beside
+    # the object; the paper's grasp guidance, transport EMA and place deceleration off
+    "default": PhysVLAConfig(),
 }
 # on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the
 # held object is within 2 cm of the target, flung blocks the simulated SO-101 carried at transport

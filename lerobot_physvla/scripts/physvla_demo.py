@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> None:
     src.reset()
     print(f"object {src.obj_name!r} -> target {src.target_name!r} (from the task's BDDL goal)")
 
-    corr = Corrector(PhysVLAConfig(mode=args.mode))
+    corr = Corrector(PhysVLAConfig.paper(mode=args.mode))
     expert = PickPlaceExpert()
     phases, devs, r_el, t_a, t_b, t_tot, t_env = [], [], [], [], [], [], []
     success = False

@@ -3,8 +3,43 @@ import pytest
 from lerobot_physvla.core.config import FETCH_4D, LIBERO_OSC_POSE, ActionLayout, PhysVLAConfig
 
 
-def test_defaults_are_the_papers():
-    c = PhysVLAConfig()
+def test_the_one_constructor_is_what_the_flag_applies():
+    """PhysVLAConfig() is the shipped default: what --policy.postprocess=physvla applies (no other flag), what
+    the corrector step holds unconfigured, and the `default` preset; the paper's main text is
+    PhysVLAConfig.paper(), which departs from it in exactly PAPER's fields."""
+    from lerobot_physvla.core.config import DEFAULT_PRESET, PAPER, PRESETS
+    from lerobot_physvla.flags import build_config, split_argv
+    from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep
+
+    _, overrides, _ = split_argv(["--policy.postprocess=physvla", "--env.type=libero"])
+    assert PhysVLAConfig() == build_config(overrides) == PRESETS[DEFAULT_PRESET] == PhysVLACorrectorStep().cfg
+    default, paper = PhysVLAConfig().to_dict(), PhysVLAConfig.paper().to_dict()
+    assert {k for k in default if default[k] != paper[k]} == set(PAPER)
+
+
+def test_configurations_saved_before_load_as_they_were():
+    """Files saved by earlier versions: a 0.1 postprocessor (most fields unknown then: they take the
+    paper's values, what they meant), the presets and an arm's robot processor as saved before the
+    configuration's defaults became the shipped default (tests/fixtures/saved_before_0_2)."""
+    import json
+    from pathlib import Path
+
+    from lerobot_physvla.core.config import PRESETS
+
+    fixtures = Path(__file__).resolve().parents[1] / "fixtures"
+    old = json.loads((fixtures / "postprocessor_v0_1/policy_postprocessor.json").read_text())
+    assert PhysVLAConfig.from_dict(old["steps"][0]["config"]["config"]) == PhysVLAConfig.paper()
+    for name in ("default", "smooth", "paper"):
+        saved = json.loads((fixtures / f"saved_before_0_2/preset_{name}/policy_postprocessor.json").read_text())
+        assert PhysVLAConfig.from_dict(saved["steps"][-1]["config"]["config"]) == PRESETS[name], name
+    robot = json.loads((fixtures / "saved_before_0_2/robot_arm_so101/physvla_robot_processor.json").read_text())
+    step = robot["steps"][-1]
+    assert step["class"].endswith("PhysVLARobotActionStep") and step["config"]["arm"] == "so101"
+    assert PhysVLAConfig.from_dict(step["config"]["config"]) == PRESETS["arm"]
+
+
+def test_the_papers_values():
+    c = PhysVLAConfig.paper()
     assert (c.cap, c.delta_grasp_m, c.beta, c.lift_bias_m, c.alpha_transport, c.d_thresh_m) == (
         0.05, 0.06, 0.5, 0.02, 0.92, 0.08
     )
@@ -19,12 +54,12 @@ def test_defaults_are_the_papers():
 )
 def test_bad_values_are_rejected_with_the_choices(field, value):
     with pytest.raises(ValueError, match=field):
-        PhysVLAConfig(**{field: value})
+        PhysVLAConfig.paper(**{field: value})
 
 
 def test_dict_round_trip_with_custom_layout():
     lay = ActionLayout(dim=5, pos=(1, 2, 3), gripper=0, metres_per_unit=0.1, gripper_open=1.0)
-    c = PhysVLAConfig(mode="phys", layout=lay, grasp_offset_m=(0.0, 0.01, 0.02))
+    c = PhysVLAConfig.paper(mode="phys", layout=lay, grasp_offset_m=(0.0, 0.01, 0.02))
     back = PhysVLAConfig.from_dict(c.to_dict())
     assert back == c and back.action_layout == lay
     with pytest.raises(ValueError, match="unknown config keys"):
@@ -42,13 +77,13 @@ def test_layout_validation():
 def test_presets_follow_the_paper_and_the_default_is_built_from_the_options():
     from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, preset
 
-    assert PRESETS["paper"] == PhysVLAConfig(mode="phys_el")  # main text: eq. 2, c = 0.05
+    assert PRESETS["paper"] == PhysVLAConfig.paper(mode="phys_el")  # main text: eq. 2, c = 0.05
     assert PRESETS["paper_alg1"].cap == 1.0 and PRESETS["paper_alg1"].mode == "phys_el"
-    assert preset("paper", mode="phys") == PhysVLAConfig(mode="phys")
+    assert preset("paper", mode="phys") == PhysVLAConfig.paper(mode="phys")
     assert DEFAULT_PRESET in PRESETS
     # smooth: the default and the low-pass, nothing else changed
     assert PRESETS["smooth"].replace(lowpass="off", lowpass_space="action", lowpass_alpha_max=0.6, lowpass_rough="ema",
-                                     lowpass_phases=PhysVLAConfig().lowpass_phases) == PRESETS["default"]
+                                     lowpass_phases=PhysVLAConfig.paper().lowpass_phases) == PRESETS["default"]
     assert PRESETS["smooth"].lowpass_mask == (True, True, False, True)  # none while an object is carried
     with pytest.raises(ValueError, match="unknown preset"):
         preset("turbo")
@@ -66,7 +101,7 @@ def test_presets_follow_the_paper_and_the_default_is_built_from_the_options():
                                  {"rim_guide_m": 0.06, "phase_caps": (1, 1, 0, 1)}])
 def test_bad_options_are_rejected(bad):
     with pytest.raises(ValueError):
-        PhysVLAConfig(**bad)
+        PhysVLAConfig.paper(**bad)
 
 
 def test_the_lift_assist_is_refused_where_it_could_not_act_and_says_what_to_set():
@@ -75,11 +110,11 @@ def test_the_lift_assist_is_refused_where_it_could_not_act_and_says_what_to_set(
     from lerobot_physvla.core.config import ActionLayout
 
     with pytest.raises(ValueError, match="phase_caps"):
-        PhysVLAConfig(lift_assist_u=0.5, phase_caps=(0.0, 0.0, 0.0, 1.0))
+        PhysVLAConfig.paper(lift_assist_u=0.5, phase_caps=(0.0, 0.0, 0.0, 1.0))
     absolute = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, absolute=True)
     with pytest.raises(ValueError, match="absolute"):
-        PhysVLAConfig(lift_assist_u=0.5, phase_caps=(0.0, 1.0, 0.0, 1.0), layout=absolute)
-    assert PhysVLAConfig(lift_assist_u=0.5, phase_caps=(0.0, 1.0, 0.0, 1.0), beta=0.0).lift_assist_u == 0.5
+        PhysVLAConfig.paper(lift_assist_u=0.5, phase_caps=(0.0, 1.0, 0.0, 1.0), layout=absolute)
+    assert PhysVLAConfig.paper(lift_assist_u=0.5, phase_caps=(0.0, 1.0, 0.0, 1.0), beta=0.0).lift_assist_u == 0.5
 
 
 def test_the_rim_guide_is_refused_where_it_could_not_act_and_says_what_to_set():
@@ -88,31 +123,31 @@ def test_the_rim_guide_is_refused_where_it_could_not_act_and_says_what_to_set():
     from lerobot_physvla.core.config import ActionLayout
 
     with pytest.raises(ValueError, match="phase_caps"):
-        PhysVLAConfig(rim_guide_m=0.047, phase_caps=(0.0, 1.0, 0.0, 1.0))
+        PhysVLAConfig.paper(rim_guide_m=0.047, phase_caps=(0.0, 1.0, 0.0, 1.0))
     absolute = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, absolute=True)
     with pytest.raises(ValueError, match="absolute"):
-        PhysVLAConfig(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0), layout=absolute)
+        PhysVLAConfig.paper(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0), layout=absolute)
     with pytest.raises(ValueError, match="delta_grasp_m"):
-        PhysVLAConfig(rim_guide_m=0.06, phase_caps=(1.0, 1.0, 0.0, 1.0))
+        PhysVLAConfig.paper(rim_guide_m=0.06, phase_caps=(1.0, 1.0, 0.0, 1.0))
     with pytest.raises(ValueError, match="chunk_phase_caps"):  # refused when built, not when a chunked policy comes
-        PhysVLAConfig(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0), chunk_phase_caps=(0.0, 0.05, 0.0, 1.0))
+        PhysVLAConfig.paper(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0), chunk_phase_caps=(0.0, 0.05, 0.0, 1.0))
     with pytest.raises(ValueError, match="chunk_phase_caps"):
-        PhysVLAConfig(lift_assist_u=0.5, phase_caps=(0.0, 1.0, 0.0, 1.0), chunk_phase_caps=(0.0, 0.0, 0.0, 1.0))
-    assert PhysVLAConfig(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0)).rim_guide_m == 0.047
+        PhysVLAConfig.paper(lift_assist_u=0.5, phase_caps=(0.0, 1.0, 0.0, 1.0), chunk_phase_caps=(0.0, 0.0, 0.0, 1.0))
+    assert PhysVLAConfig.paper(rim_guide_m=0.047, phase_caps=(1.0, 1.0, 0.0, 1.0)).rim_guide_m == 0.047
     with pytest.raises(ValueError, match="set rim_guide_m"):
-        PhysVLAConfig(rim_guide_into_grasp=True, phase_caps=(1.0, 1.0, 0.0, 1.0))
+        PhysVLAConfig.paper(rim_guide_into_grasp=True, phase_caps=(1.0, 1.0, 0.0, 1.0))
     with pytest.raises(ValueError, match="grasp phase's authority, which is 0 in chunk_phase_caps"):
-        PhysVLAConfig(rim_guide_m=0.047, rim_guide_into_grasp=True, phase_caps=(1.0, 1.0, 0.0, 1.0),
+        PhysVLAConfig.paper(rim_guide_m=0.047, rim_guide_into_grasp=True, phase_caps=(1.0, 1.0, 0.0, 1.0),
                       chunk_phase_caps=(1.0, 0.0, 0.0, 1.0))
-    assert PhysVLAConfig(rim_guide_m=0.047, rim_guide_into_grasp=True, phase_caps=(1.0, 1.0, 0.0, 1.0)).rim_guide_into_grasp
+    assert PhysVLAConfig.paper(rim_guide_m=0.047, rim_guide_into_grasp=True, phase_caps=(1.0, 1.0, 0.0, 1.0)).rim_guide_into_grasp
 
 
 def test_chunk_phase_caps_apply_only_to_a_policy_that_executes_chunks():
-    c = PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), chunk_phase_caps=(0.0, 0.05, 0.0, 1.0))
+    c = PhysVLAConfig.paper(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0), chunk_phase_caps=(0.0, 0.05, 0.0, 1.0))
     assert c.for_policy(1) is c and c.for_policy(1).caps == (0.0, 0.0, 0.0, 1.0)  # single-step: unchanged
     chunked = c.for_policy(10)
     assert chunked.caps == (0.0, 0.05, 0.0, 1.0) and chunked.chunk_phase_caps == ()
     assert chunked.replace(phase_caps=c.phase_caps, chunk_phase_caps=c.chunk_phase_caps) == c  # nothing else moves
-    plain = PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0))
+    plain = PhysVLAConfig.paper(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0))
     assert plain.for_policy(10) is plain  # no chunk caps: the same for every policy
     assert PhysVLAConfig.from_dict(c.to_dict()) == c

@@ -25,7 +25,7 @@ PKG = Path(branch_a.__file__).resolve().parents[2]
 def ctx(layout=LIBERO_OSC_POSE, eef=(0.0, 0.0, 1.0), obj=(0.02, -0.01, 0.9), d_tgt=0.04, **cfg):
     geo = np.zeros(N_GEO)
     geo[EEF:EEF + 3], geo[OBJ:OBJ + 3], geo[D_TGT_XY] = eef, obj, d_tgt
-    return channel_index(layout), geo, params(PhysVLAConfig(**cfg), layout), np.zeros(N_MEM)
+    return channel_index(layout), geo, params(PhysVLAConfig.paper(**cfg), layout), np.zeros(N_MEM)
 
 
 def run(fn, a_raw, idx, geo, p, mem, commit=True):
@@ -96,7 +96,7 @@ from lerobot_physvla.core.config import PhysVLAConfig
 from lerobot_physvla.core.state import PhysState
 st = PhysState.empty(1, 7); st.valid[:] = 1; st.dt[:] = 0.05
 st.eef_pos[:] = (0, 0, 1.0); st.obj_pos[:] = (0.02, 0, 0.9); st.obj_rest_z[:] = 0.9; st.target_pos[:] = (0.5, 0, 0.9)
-c = Corrector(PhysVLAConfig(mode="phys", cap=1.0), 1)
+c = Corrector(PhysVLAConfig.paper(mode="phys", cap=1.0), 1)
 print(repr(float(c(np.zeros((1, 7)), st)[0, 0])))
 """
 
@@ -385,7 +385,7 @@ def test_branch_a_runs_the_lift_assist_in_the_grasp_phase_only_and_forgets_a_hol
     np.testing.assert_array_equal(np.delete(out, 2), np.delete(hold, 2))
     branch_a_row(hold, out, TRANSPORT, idx, geo, p, mem, True)  # lifted past h_lift: the assist ends
     assert mem[LIFT_STALL] == 0
-    off = params(PhysVLAConfig(phase_caps=(0.0, 1.0, 0.0, 1.0), beta=0.0), LIBERO_OSC_POSE)  # lift_assist_u 0: off
+    off = params(PhysVLAConfig.paper(phase_caps=(0.0, 1.0, 0.0, 1.0), beta=0.0), LIBERO_OSC_POSE)  # lift_assist_u 0: off
     mem[:] = 0.0
     for _ in range(5):
         branch_a_row(hold, out, GRASP, idx, geo, off, mem, True)
@@ -523,7 +523,7 @@ def test_branch_a_runs_the_rim_guide_in_approach_only_leaving_the_gripper_to_the
     assert out[0] < 0 < out[1] and mem[RIM_ON] == 1.0
     branch_a_row(a, out, GRASP, idx, geo, p, mem, True)  # inside delta_grasp: the pull ends
     assert mem[RIM_ON] == 0.0
-    off = params(PhysVLAConfig(phase_caps=(1.0, 1.0, 0.0, 1.0), beta=0.0), LIBERO_OSC_POSE)  # rim_guide_m 0
+    off = params(PhysVLAConfig.paper(phase_caps=(1.0, 1.0, 0.0, 1.0), beta=0.0), LIBERO_OSC_POSE)  # rim_guide_m 0
     mem[:] = 0.0
     for _ in range(RIM_SETTLE_STEPS + 2):
         branch_a_row(a, out, APPROACH, idx, geo, off, mem, True)

@@ -15,14 +15,14 @@ RAW = np.array([[0.4, -0.2, 0.1, 0.3, 0.0, -0.3, 1.0]])
 
 
 def test_baseline_is_identity():
-    c = Corrector(PhysVLAConfig(mode="baseline"))
+    c = Corrector(PhysVLAConfig.paper(mode="baseline"))
     out = c(RAW, make_state())
     np.testing.assert_array_equal(out, RAW)
 
 
 def test_phys_blends_branch_a_with_the_cap():
     st = make_state(eef=(0, 0, 1.0), obj=(0.01, -0.02, 0.95))  # grasp phase
-    out = Corrector(PhysVLAConfig(mode="phys"))(RAW, st)
+    out = Corrector(PhysVLAConfig.paper(mode="phys"))(RAW, st)
     a_phys = RAW.copy()
     a_phys[0, :3] = 0.5 * np.array([0.2, -0.4, -1.0]) + 0.5 * RAW[0, :3]
     np.testing.assert_allclose(out, 0.95 * RAW + 0.05 * a_phys)
@@ -30,16 +30,16 @@ def test_phys_blends_branch_a_with_the_cap():
 
 def test_gripper_rules_in_approach():
     st = make_state(obj=(0.5, 0.0, 0.9))  # approach
-    blend = Corrector(PhysVLAConfig(mode="phys", gripper_rule="blend"))(RAW, st)
-    veto = Corrector(PhysVLAConfig(mode="phys", gripper_rule="veto"))(RAW, st)
+    blend = Corrector(PhysVLAConfig.paper(mode="phys", gripper_rule="blend"))(RAW, st)
+    veto = Corrector(PhysVLAConfig.paper(mode="phys", gripper_rule="veto"))(RAW, st)
     assert blend[0, 6] == pytest.approx(0.9) and veto[0, 6] == -1.0
     np.testing.assert_allclose(blend[0, :6], veto[0, :6])
     st_grasp = make_state()  # grasp: no veto
-    assert Corrector(PhysVLAConfig(mode="phys", gripper_rule="veto"))(RAW, st_grasp)[0, 6] == 1.0
+    assert Corrector(PhysVLAConfig.paper(mode="phys", gripper_rule="veto"))(RAW, st_grasp)[0, 6] == 1.0
 
 
 def test_temporal_mode_is_a_uniform_position_ema():
-    c = Corrector(PhysVLAConfig(mode="temporal"))
+    c = Corrector(PhysVLAConfig.paper(mode="temporal"))
     st = make_state()
     out1 = c(RAW, st)
     np.testing.assert_allclose(out1, RAW)
@@ -57,9 +57,9 @@ def test_batched_envs_do_not_interact():
     st.obj_pos[1] = (0.0, 0, 0.95)
     st.obj_rest_z[1] = 0.9  # lifted -> transport
     raw = np.repeat(RAW, 3, axis=0)
-    together = Corrector(PhysVLAConfig(), 3)(raw, st)
+    together = Corrector(PhysVLAConfig.paper(), 3)(raw, st)
     for i in range(3):
-        alone = Corrector(PhysVLAConfig(), 1)(raw[i : i + 1], _row(st, i))
+        alone = Corrector(PhysVLAConfig.paper(), 1)(raw[i : i + 1], _row(st, i))
         np.testing.assert_allclose(together[i], alone[0], atol=1e-12)
 
 
@@ -71,7 +71,7 @@ def _row(st, i):
 
 def test_per_env_reset_of_transport_memory():
     st = make_state(batch_size=2, obj=(0, 0, 0.95), lift=0.05)  # both transporting
-    c = Corrector(PhysVLAConfig(mode="phys"), 2)
+    c = Corrector(PhysVLAConfig.paper(mode="phys"), 2)
     raw = np.repeat(RAW, 2, axis=0)
     c(raw, st)
     c.reset([1])
@@ -85,8 +85,8 @@ def test_per_env_reset_of_transport_memory():
 def test_chunks_all_and_first():
     st = make_state(obj=(0.5, 0, 0.9))  # approach: veto changes the gripper of every corrected step
     chunk = np.repeat(RAW[:, None, :], 4, axis=1)  # (B=1, T=4, A=7)
-    all_ = Corrector(PhysVLAConfig(mode="phys", gripper_rule="veto", chunk="all"))(chunk, st)
-    first = Corrector(PhysVLAConfig(mode="phys", gripper_rule="veto", chunk="first"))(chunk, st)
+    all_ = Corrector(PhysVLAConfig.paper(mode="phys", gripper_rule="veto", chunk="all"))(chunk, st)
+    first = Corrector(PhysVLAConfig.paper(mode="phys", gripper_rule="veto", chunk="first"))(chunk, st)
     assert all_.shape == chunk.shape
     assert (all_[0, :, 6] == -1.0).all()
     assert first[0, 0, 6] == -1.0 and (first[0, 1:, 6] == 1.0).all()
@@ -95,16 +95,16 @@ def test_chunks_all_and_first():
 def test_chunk_steps_do_not_advance_memory():
     st = make_state(obj=(0, 0, 0.95), lift=0.05)  # transport
     chunk = np.stack([RAW[0], np.zeros(7), np.zeros(7)])[None]
-    c = Corrector(PhysVLAConfig(mode="phys"))
+    c = Corrector(PhysVLAConfig.paper(mode="phys"))
     c(chunk, st)
     after_chunk = c(np.zeros((1, 7)), st)
-    c2 = Corrector(PhysVLAConfig(mode="phys"))
+    c2 = Corrector(PhysVLAConfig.paper(mode="phys"))
     c2(RAW, st)
     np.testing.assert_allclose(after_chunk, c2(np.zeros((1, 7)), st))  # same memory as one step of RAW
 
 
 def test_shape_errors_are_raised_at_the_boundary():
-    c = Corrector(PhysVLAConfig(), 2)
+    c = Corrector(PhysVLAConfig.paper(), 2)
     with pytest.raises(ValueError, match="batch_size=2"):
         c(np.zeros((1, 7)), make_state(batch_size=1))
     with pytest.raises(ValueError, match="layout"):
@@ -112,7 +112,7 @@ def test_shape_errors_are_raised_at_the_boundary():
     with pytest.raises(ValueError, match=r"\(B, A\)"):
         c(np.zeros(7), make_state(batch_size=2))
     with pytest.raises(ValueError, match="2 envs"):
-        Corrector(PhysVLAConfig(), 1)(np.zeros((1, 7)), make_state(batch_size=2))
+        Corrector(PhysVLAConfig.paper(), 1)(np.zeros((1, 7)), make_state(batch_size=2))
 
 
 def test_invalid_state_and_nonfinite_action_pass_through_and_are_counted():
@@ -120,7 +120,7 @@ def test_invalid_state_and_nonfinite_action_pass_through_and_are_counted():
     st.valid[1] = False
     raw = np.repeat(RAW, 3, axis=0)
     raw[2, 0] = np.nan
-    c = Corrector(PhysVLAConfig(), 3)
+    c = Corrector(PhysVLAConfig.paper(), 3)
     with pytest.warns(RuntimeWarning, match="passing"):
         out = c(raw, st)
     np.testing.assert_array_equal(out[1], raw[1])
@@ -135,7 +135,7 @@ def test_invalid_state_and_nonfinite_action_pass_through_and_are_counted():
 def test_singular_mass_matrix_passes_that_env_through(weighting):
     st = make_state(batch_size=2, obj=(0.5, 0, 0.9))
     st.M[1] = 0.0  # finite but not positive definite
-    c = Corrector(PhysVLAConfig(weighting=weighting), 2)
+    c = Corrector(PhysVLAConfig.paper(weighting=weighting), 2)
     raw = np.repeat(RAW, 2, axis=0)
     with pytest.warns(RuntimeWarning, match="singular_dynamics"):
         out = c(raw, st)
@@ -163,7 +163,7 @@ coord = st_.floats(-0.5, 0.5, allow_nan=False)
     seed=st_.integers(0, 50),
 )
 def test_output_in_bounds_and_deviation_capped(a, eef, obj, tgt, lift, mode, el, weighting, grip, seed):
-    cfg = PhysVLAConfig(mode=mode, el_mode=el, weighting=weighting, gripper_rule=grip)
+    cfg = PhysVLAConfig.paper(mode=mode, el_mode=el, weighting=weighting, gripper_rule=grip)
     st = make_state(eef=eef, obj=obj, target=tgt, lift=lift, seed=seed)
     raw = np.array([a])
     c = Corrector(cfg)
@@ -183,7 +183,7 @@ def test_output_in_bounds_and_deviation_capped(a, eef, obj, tgt, lift, mode, el,
 @settings(max_examples=60, deadline=None)
 @given(bad=st_.sampled_from([np.nan, np.inf, -np.inf]), idx=st_.integers(0, 6))
 def test_nonfinite_actions_become_the_hold_action(bad, idx):
-    c = Corrector(PhysVLAConfig())
+    c = Corrector(PhysVLAConfig.paper())
     first = c(RAW, make_state())  # a finite step: its gripper command is what the hold repeats
     raw = RAW.copy()
     raw[0, idx] = bad
@@ -198,16 +198,16 @@ def test_phase_caps_replace_the_cap_per_phase():
     st = make_state(eef=(0, 0, 1.0), obj=(0.01, -0.02, 0.95))  # grasp phase
     cand = RAW.copy()
     cand[0, :3] = 0.5 * np.array([0.2, -0.4, -1.0]) + 0.5 * RAW[0, :3]
-    out = Corrector(PhysVLAConfig(mode="phys", phase_caps=(0.0, 0.4, 0.0, 0.0)))(RAW, st)
+    out = Corrector(PhysVLAConfig.paper(mode="phys", phase_caps=(0.0, 0.4, 0.0, 0.0)))(RAW, st)
     np.testing.assert_allclose(out, 0.6 * RAW + 0.4 * cand)
-    off = Corrector(PhysVLAConfig(mode="phys", phase_caps=(1.0, 0.0, 1.0, 1.0)))(RAW, st)
+    off = Corrector(PhysVLAConfig.paper(mode="phys", phase_caps=(1.0, 0.0, 1.0, 1.0)))(RAW, st)
     np.testing.assert_array_equal(off, RAW)
 
 
 def test_full_veto_with_height_vetoes_a_close_above_the_object_in_grasp():
     close = RAW.copy()
     close[0, 6] = 1.0  # robosuite: +1 closes
-    cfg = PhysVLAConfig(mode="phys", phase_caps=(0.0,) * 4, gripper_rule="veto", veto_height_m=0.06)
+    cfg = PhysVLAConfig.paper(mode="phys", phase_caps=(0.0,) * 4, gripper_rule="veto", veto_height_m=0.06)
     high = make_state(eef=(0.01, 0, 1.0), obj=(0.0, 0.0, 0.9))  # grasp phase, hand 10 cm above
     low = make_state(eef=(0.01, 0, 0.94), obj=(0.0, 0.0, 0.9))  # 4 cm above: a grasp can close
     far = make_state(eef=(0.3, 0, 0.94), obj=(0.0, 0.0, 0.9))  # approach: vetoed in full, cap 0 or not
@@ -223,7 +223,7 @@ def test_the_veto_never_opens_a_gripper_that_holds_when_told_so():
     hand while the phase is still grasp; at the height veto's 0.06 m the veto opened the gripper."""
     close = RAW.copy()
     close[0, 6] = 1.0  # robosuite: +1 closes
-    cfg = PhysVLAConfig(mode="phys", phase_caps=(0.0,) * 4, gripper_rule="veto", veto_height_m=0.06)
+    cfg = PhysVLAConfig.paper(mode="phys", phase_caps=(0.0,) * 4, gripper_rule="veto", veto_height_m=0.06)
     low = make_state(eef=(0.01, 0, 0.94), obj=(0.0, 0.0, 0.9))  # grasp phase, 4 cm above: it closes
     lifting = make_state(eef=(0.01, 0, 0.9605), obj=(0.0, 0.0, 0.9))  # still grasp, 6.05 cm above
     for reopen, last_grip in ((True, -1.0), (False, 1.0)):
@@ -241,7 +241,7 @@ def test_the_veto_never_opens_a_gripper_that_holds_when_told_so():
 def test_veto_reach_spares_a_low_close_within_reach_of_a_rim():
     close = RAW.copy()
     close[0, 6] = 1.0  # robosuite: +1 closes
-    cfg = PhysVLAConfig(mode="phys", phase_caps=(0.0,) * 4, gripper_rule="veto", veto_height_m=0.06,
+    cfg = PhysVLAConfig.paper(mode="phys", phase_caps=(0.0,) * 4, gripper_rule="veto", veto_height_m=0.06,
                         veto_reach_m=0.10)
     rim = make_state(eef=(0.0, -0.08, 0.935), obj=(0.0, 0.0, 0.9))  # approach (0.08 >= 0.06), 3.5 cm up
     beyond = make_state(eef=(0.0, -0.12, 0.935), obj=(0.0, 0.0, 0.9))  # out of the fingers' reach
@@ -256,8 +256,8 @@ def test_veto_reach_spares_a_low_close_within_reach_of_a_rim():
 def test_phase_ref_object_measures_the_place_distance_from_the_held_object():
     # lifted object 8 cm off the hand, right over the target; the hand itself is 8 cm away from it
     st = make_state(eef=(0.10, 0.0, 1.0), obj=(0.02, 0.0, 0.95), target=(0.02, 0.0, 0.9), lift=0.05)
-    c_eef = Corrector(PhysVLAConfig(mode="phys"))
-    c_obj = Corrector(PhysVLAConfig(mode="phys", phase_ref="object"))
+    c_eef = Corrector(PhysVLAConfig.paper(mode="phys"))
+    c_obj = Corrector(PhysVLAConfig.paper(mode="phys", phase_ref="object"))
     c_eef(RAW, st)
     c_obj(RAW, st)
     assert c_eef.last.phase[0] == Phase.TRANSPORT and c_eef.last.d_tgt_xy[0] == pytest.approx(0.08)
@@ -269,7 +269,7 @@ def test_a_stream_in_one_call_equals_the_stream_in_steps(mode):
     """correct_stream's compiled call (episode resets, the tick) against its step-by-step path
     (reset where episode_step went back or on first sight, then correct_packed): the same actions
     over episodes of different lengths per env, non-finite and out-of-bounds actions included."""
-    cfg = PhysVLAConfig(mode=mode, cap=1.0)
+    cfg = PhysVLAConfig.paper(mode=mode, cap=1.0)
     one, steps = Corrector(cfg, 3), Corrector(cfg, 3)
     rng = np.random.default_rng(5)
     counters = np.zeros(3)

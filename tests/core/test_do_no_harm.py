@@ -43,7 +43,7 @@ def test_any_state_field_and_action_gives_a_finite_in_bounds_action(
 ):
     lay = LAYOUTS[layout]
     n = lay.dim if weighting == "joint_diag" else 7  # joint_diag needs one joint per action entry
-    cfg = PhysVLAConfig(mode=mode, layout=layout, weighting=weighting, el_mode=el, gripper_rule=grip,
+    cfg = PhysVLAConfig.paper(mode=mode, layout=layout, weighting=weighting, el_mode=el, gripper_rule=grip,
                         chunk=chunk or "all", cap=1.0 if seed % 2 else 0.05)
     if beyond:  # the options beyond the paper (those of the default preset, and per-phase authority)
         cfg = cfg.replace(phase_caps=(0.5 * (seed % 5 > 1), 0.5, 1.0, 1.0), veto_height_m=0.06, veto_reach_m=0.10,
@@ -91,7 +91,7 @@ def test_any_state_field_and_action_gives_a_finite_in_bounds_action(
 def test_zero_dt_is_a_counted_pass_through_not_an_exception(mode):
     st = make_state(2, obj=(0.5, 0.0, 0.9))
     st.dt[1] = 0.0
-    c = Corrector(PhysVLAConfig(mode=mode), 2)
+    c = Corrector(PhysVLAConfig.paper(mode=mode), 2)
     a = np.full((2, 7), 0.3)
     with pytest.warns(RuntimeWarning) if mode == "phys_el" else _nothing():
         out = c(a, st)
@@ -104,7 +104,7 @@ def test_zero_dt_is_a_counted_pass_through_not_an_exception(mode):
 def test_out_of_bounds_pass_through_is_clipped_and_counted():
     st = make_state(1)
     st.valid[0] = 0.0  # no usable state: pass-through
-    c = Corrector(PhysVLAConfig(mode="phys"), 1)
+    c = Corrector(PhysVLAConfig.paper(mode="phys"), 1)
     with pytest.warns(RuntimeWarning, match="invalid_state"):
         out = c(np.array([[2.0, -3.0, 0.5, 0, 0, 0, 1.0]]), st)
     np.testing.assert_array_equal(out, [[1.0, -1.0, 0.5, 0, 0, 0, 1.0]])
@@ -115,7 +115,7 @@ def test_hold_of_an_absolute_layout_repeats_the_last_action():
     from lerobot_physvla.core.config import ActionLayout
 
     lay = ActionLayout(dim=7, pos=(0, 1, 2), gripper=6, absolute=True)
-    c = Corrector(PhysVLAConfig(mode="baseline", layout=lay), 1)
+    c = Corrector(PhysVLAConfig.paper(mode="baseline", layout=lay), 1)
     st = make_state(1)
     first = c(np.array([[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]]), st)
     with pytest.warns(RuntimeWarning, match="non-finite"):

@@ -57,7 +57,7 @@ def _consistent_state(src):
     """The real arm, with qdot and tau set so that action v1 is exactly consistent (r_EL = 0)."""
     st = src.read()
     st.valid[:] = True
-    cfg = PhysVLAConfig()
+    cfg = PhysVLAConfig.paper()
     dt = st.dt
     v0, v1 = np.array([[0.05, 0.0, -0.02]]), np.array([[0.1, 0.02, -0.05]])
     zero = np.zeros_like(st.qdot)
@@ -72,7 +72,7 @@ def _consistent_state(src):
 def test_residual_zero_for_consistent_and_large_for_inconsistent_action(panda):
     _, src = panda
     st, a_pos = _consistent_state(src)
-    g = ELGate(PhysVLAConfig())
+    g = ELGate(PhysVLAConfig.paper())
     r, _ = g.residual(a_pos, st)
     assert np.linalg.norm(r) < 1e-6
     r_bad, _ = g.residual(-a_pos, st)
@@ -87,14 +87,14 @@ def test_gated_mode_is_a_no_op_below_eps(panda):
     a_raw[0, 6] = 1.0  # close: Branch A's approach veto changes only the gripper, not the residual
     st.obj_pos[:] = st.eef_pos + [0.5, 0.0, 0.0]  # far from the object -> approach
     st.obj_rest_z[:] = st.obj_pos[:, 2]
-    phys = Corrector(PhysVLAConfig(mode="phys"))
+    phys = Corrector(PhysVLAConfig.paper(mode="phys"))
     assert phys(a_raw, st)[0, 6] == pytest.approx(0.9)  # the veto through the 5 % cap
-    gated = Corrector(PhysVLAConfig(mode="phys_el", el_mode="gated"))
+    gated = Corrector(PhysVLAConfig.paper(mode="phys_el", el_mode="gated"))
     out = gated(a_raw, st)
     assert gated.last.r_el[0] < 0.05  # below eps
     np.testing.assert_allclose(out, a_raw, rtol=0, atol=1e-15)
     assert gated.last.weights.sum() == 0
-    soft = Corrector(PhysVLAConfig(mode="phys_el", el_mode="soft"))
+    soft = Corrector(PhysVLAConfig.paper(mode="phys_el", el_mode="soft"))
     assert soft(a_raw, st)[0, 6] < 1.0  # soft mode still passes part of the veto
 
 
@@ -116,7 +116,7 @@ def test_weights_are_on_the_simplex_and_favour_light_joints():
 
 def test_task_space_leaves_rotation_and_gripper_to_branch_a():
     st = make_state()
-    cfg = PhysVLAConfig(weighting="task_space")
+    cfg = PhysVLAConfig.paper(weighting="task_space")
     a_raw = np.array([[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 1.0]])
     a_phys = np.array([[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]])
     a, _, _, w, ok = ELGate(cfg)(a_raw, a_phys, st)
@@ -129,12 +129,12 @@ def test_task_space_leaves_rotation_and_gripper_to_branch_a():
 def test_joint_diag_refuses_a_layout_that_does_not_match_the_arm():
     st = make_state(n=6)
     with pytest.raises(ValueError, match="task_space"):
-        Corrector(PhysVLAConfig(mode="phys_el"))(np.zeros((1, 7)), st)
+        Corrector(PhysVLAConfig.paper(mode="phys_el"))(np.zeros((1, 7)), st)
 
 
 def test_work_energy_residual_is_power_of_the_el_residual():
     st = make_state()
-    g = ELGate(PhysVLAConfig())
+    g = ELGate(PhysVLAConfig.paper())
     a = np.array([[0.2, -0.1, 0.3, 0, 0, 0, -1.0]])
     _, r_norm, r_energy, _, _ = g(a, a, st)
     r, _ = g.residual(a[:, :3], st)

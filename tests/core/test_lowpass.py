@@ -13,7 +13,7 @@ CAPS_OFF = (0.0, 0.0, 0.0, 0.0)
 
 
 def _run(actions, **cfg):
-    c = Corrector(PhysVLAConfig(mode="phys", phase_caps=CAPS_OFF, lowpass="adaptive", **cfg))
+    c = Corrector(PhysVLAConfig.paper(mode="phys", phase_caps=CAPS_OFF, lowpass="adaptive", **cfg))
     st = make_state(obj=(0.5, 0.0, 0.9))  # approach phase
     return np.array([c(a[None], st)[0] for a in actions])
 
@@ -71,7 +71,7 @@ def _closed_loop(space: str | None, steps: int = 300, seed: int = 0, **cfg) -> t
     expert's gain and the jitter expert's noise), executed by a perfect delta controller
     (x += a 0.05 m). Returns the positions (steps, 2) and the executed actions (steps, 2)."""
     rng = np.random.default_rng(seed)
-    c = None if space is None else Corrector(PhysVLAConfig(
+    c = None if space is None else Corrector(PhysVLAConfig.paper(
         mode="phys", phase_caps=CAPS_OFF, lowpass="adaptive", lowpass_space=space, lowpass_alpha_max=0.6, **cfg))
     x, xs, acts = np.array([0.10, -0.08]), [], []
     for _ in range(steps):
@@ -107,7 +107,7 @@ def test_target_space_is_the_action_space_on_an_absolute_layout():
     raw = np.clip(rng.normal(0.0, 0.3, (80, 7)), -1.0, 1.0)
     outs = {}
     for space in ("action", "target"):
-        c = Corrector(PhysVLAConfig(mode="phys", layout=lay, phase_caps=CAPS_OFF, lowpass="adaptive",
+        c = Corrector(PhysVLAConfig.paper(mode="phys", layout=lay, phase_caps=CAPS_OFF, lowpass="adaptive",
                                     lowpass_space=space))
         st = make_state(eef=(0.2, -0.1, 1.0), obj=(0.5, 0.0, 0.9))
         outs[space] = np.array([c(a[None], st)[0] for a in raw])
@@ -120,7 +120,7 @@ def test_speed_fading_keeps_a_fast_move_at_the_policy_s_speed():
     # with lowpass_speed_hi the smoothing fades as the intended speed nears it
     def travelled(**cfg) -> tuple[float, float]:
         rng = np.random.default_rng(4)
-        c = Corrector(PhysVLAConfig(mode="phys", phase_caps=CAPS_OFF, lowpass="adaptive", lowpass_space="target",
+        c = Corrector(PhysVLAConfig.paper(mode="phys", phase_caps=CAPS_OFF, lowpass="adaptive", lowpass_space="target",
                                     lowpass_alpha_max=0.6, **cfg))
         x = commanded = 0.0
         for _ in range(40):
@@ -191,7 +191,7 @@ def test_a_target_space_output_stays_inside_the_bounds_when_the_hand_jumps():
     # the filtered target minus the measured hand: a hand reported 4 action units away every other
     # step (a jumping state source) took the emitted action to |2.07| before the safety net clipped
     # corrected rows too
-    c = Corrector(PhysVLAConfig(mode="phys", phase_caps=CAPS_OFF, lowpass="adaptive", lowpass_space="target",
+    c = Corrector(PhysVLAConfig.paper(mode="phys", phase_caps=CAPS_OFF, lowpass="adaptive", lowpass_space="target",
                                 lowpass_alpha_max=0.6))
     rng = np.random.default_rng(0)
     outs = []

@@ -45,7 +45,7 @@ def run(phase, a_raw, eef=(0, 0, 1.0), obj=(0, 0, 0.9), d_tgt=1.0, cfg=None, cor
 
     The state is built so that `phase` is detected: approach puts the object 0.5 m away, transport
     and place lift it 5 cm, and the target sits d_tgt metres from the end-effector along y."""
-    cfg = (cfg or PhysVLAConfig()).replace(mode="phys", cap=1.0)
+    cfg = (cfg or PhysVLAConfig.paper()).replace(mode="phys", cap=1.0)
     corr = corr or Corrector(cfg)
     eef = np.asarray(eef, float)
     obj = np.asarray(obj, float)
@@ -79,7 +79,7 @@ def test_grasp_pulls_toward_the_waypoint_in_action_units():
 
 def test_grasp_metre_to_unit_conversion_follows_the_layout():
     lay = ActionLayout(dim=7, pos=(0, 1, 2), rot=(3, 4, 5), gripper=6, metres_per_unit=0.1)
-    cfg = PhysVLAConfig(layout=lay, grasp_offset_m=(0.0, 0.0, 0.02))
+    cfg = PhysVLAConfig.paper(layout=lay, grasp_offset_m=(0.0, 0.0, 0.02))
     out, _ = run(Phase.GRASP, [0] * 7, eef=(0, 0, 1.0), obj=(0.01, 0.0, 0.98), cfg=cfg)
     np.testing.assert_allclose(out[:3], 0.5 * np.array([0.1, 0.0, 0.0]))  # 1 cm = 0.1 units; z offset cancels
 
@@ -90,7 +90,7 @@ def test_grasp_waypoint_is_clipped_to_bounds():
 
 
 def test_transport_lift_bias_and_ema():
-    cfg = PhysVLAConfig()
+    cfg = PhysVLAConfig.paper()
     out1, corr = run(Phase.TRANSPORT, RAW, cfg=cfg)
     lift_units = 0.02 / 0.05
     x1 = np.array(RAW[:3]) + [0, 0, lift_units]
@@ -115,7 +115,7 @@ def test_place_deceleration_ramp(d_tgt, ramp):
 
 
 def test_transport_memory_is_per_env_and_resettable():
-    cfg = PhysVLAConfig(mode="phys", cap=1.0)
+    cfg = PhysVLAConfig.paper(mode="phys", cap=1.0)
     corr = Corrector(cfg, 2)
     st = make_state(batch_size=2, obj=(0, 0, 0.95), lift=0.05)
     corr(np.array([RAW, RAW]), st)

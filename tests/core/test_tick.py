@@ -9,12 +9,12 @@ from lerobot_physvla.core.corrector import Corrector
 from conftest import make_state
 
 CONFIGS = [
-    PhysVLAConfig(mode="baseline"),
-    PhysVLAConfig(mode="temporal"),
-    PhysVLAConfig(mode="phys", cap=0.3),
-    PhysVLAConfig(mode="phys_el"),
-    PhysVLAConfig(mode="phys_el", weighting="task_space", el_mode="gated", cap=1.0),
-    PhysVLAConfig(mode="phys_el", chunk="first"),
+    PhysVLAConfig.paper(mode="baseline"),
+    PhysVLAConfig.paper(mode="temporal"),
+    PhysVLAConfig.paper(mode="phys", cap=0.3),
+    PhysVLAConfig.paper(mode="phys_el"),
+    PhysVLAConfig.paper(mode="phys_el", weighting="task_space", el_mode="gated", cap=1.0),
+    PhysVLAConfig.paper(mode="phys_el", chunk="first"),
     PRESETS["default"],
     PRESETS["default"].replace(veto_reopen=True),  # default v3: the veto may open a closed gripper
     PRESETS["default"].replace(release_carry=False),  # default v4: the release veto in the place phase only
@@ -61,7 +61,7 @@ def test_fused_tick_equals_the_staged_kernels(cfg, chunked):
 
 
 def test_last_is_a_snapshot_of_its_call():
-    c = Corrector(PhysVLAConfig(mode="phys_el"), 1)
+    c = Corrector(PhysVLAConfig.paper(mode="phys_el"), 1)
     c(np.zeros((1, 7)), make_state(eef=(0, 0, 1.0), obj=(0.3, 0, 0.9)))
     first = c.last
     phase = first.phase.copy()

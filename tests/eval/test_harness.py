@@ -19,7 +19,7 @@ def test_seed_blocks_cover_every_seed_once():
 
 @pytest.mark.slow
 def test_units_run_once_and_resume(tmp_path):
-    unit = Unit("expert_clean", "phys_el", PhysVLAConfig(mode="phys_el").to_dict(), task_id=0, first_seed=0, episodes=1)
+    unit = Unit("expert_clean", "phys_el", PhysVLAConfig.paper(mode="phys_el").to_dict(), task_id=0, first_seed=0, episodes=1)
     records, _ = run_units([unit], tmp_path, workers=1)
     path = tmp_path / "units" / f"{unit.key}.json"
     stamp = path.stat().st_mtime_ns
@@ -41,7 +41,7 @@ def test_other_scenes_and_the_ray_backend_give_the_same_records(tmp_path):
     """Fetch units (4-D layout) through a one-CPU local Ray instance equal the process pool's."""
     import ray
 
-    cfg = PhysVLAConfig(mode="phys_el", layout="fetch_4d", weighting="task_space").to_dict()
+    cfg = PhysVLAConfig.paper(mode="phys_el", layout="fetch_4d", weighting="task_space").to_dict()
     units = [Unit("sigma=0.20", "phys_el", cfg, 0, 7 + 2 * k, 2, {"action_noise": 0.2, "noise_stage": "grasp"},
                   scene="fetch_pick_place") for k in range(2)]
     assert units[0].key == "sigma=0.20__phys_el__fetch_pick_place__s7-8"
@@ -95,7 +95,7 @@ def test_a_unit_on_disk_run_with_other_weights_is_not_reused(tmp_path):
     ckpt = tmp_path / "ckpt"
     ckpt.mkdir()
     (ckpt / "model.safetensors").write_bytes(b"weights v1")
-    unit = Unit("act_chunk", "baseline", PhysVLAConfig(mode="baseline").to_dict(), policy=str(ckpt))
+    unit = Unit("act_chunk", "baseline", PhysVLAConfig.paper(mode="baseline").to_dict(), policy=str(ckpt))
     (tmp_path / "units").mkdir()
     (tmp_path / "units" / f"{unit.key}.json").write_text(json.dumps(
         {"unit": {"config": unit.config, "expert": {}}, "policy_sha256": policy_fingerprint(ckpt)}))

@@ -267,7 +267,7 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
     from lerobot_physvla.core.config import PhysVLAConfig
 
     data = Store(ROOT / "eval/results/learned_mid")
-    uncorrected = config_hash(PhysVLAConfig(mode="baseline").to_dict())
+    uncorrected = config_hash(PhysVLAConfig.paper(mode="baseline").to_dict())
     assert set(train_backbones.MID_CHOICE) <= set(train_backbones.MID_SIBLINGS)
     for name in train_backbones.MID_SIBLINGS:
         run, step = train_backbones.MID_CHOICE.get(name, (None, None))

@@ -101,7 +101,7 @@ def test_store_writes_the_same_bytes_for_the_same_rows(tmp_path):
 
 
 def test_config_hash_ignores_low_pass_fields_only_while_the_low_pass_is_off():
-    off = PhysVLAConfig(mode="phys")
+    off = PhysVLAConfig.paper(mode="phys")
     assert config_hash(off.to_dict()) == config_hash(off.replace(lowpass_alpha_max=0.3).to_dict())
     on = off.replace(lowpass="adaptive")
     assert config_hash(on.to_dict()) != config_hash(on.replace(lowpass_alpha_max=0.3).to_dict())

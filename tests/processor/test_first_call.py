@@ -26,7 +26,7 @@ obs = lambda: {ROBOT_STATE: {STATE_KEY: torch.from_numpy(st.pack().copy()),
                              EXTRA_KEY: torch.zeros(1, 9, dtype=torch.float64)}}
 steps = {}
 for mode in ("phys_el", "phys", "temporal", "baseline"):  # built (and warmed up) before any tick
-    cor = PhysVLACorrectorStep(config=PhysVLAConfig(mode=mode).to_dict(), bus=mode)
+    cor = PhysVLACorrectorStep(config=PhysVLAConfig.paper(mode=mode).to_dict(), bus=mode)
     cor.listeners.append(EpisodeRecorder())
     steps[mode] = (PhysVLAStateCaptureStep(bus=mode), cor)
 act = torch.full((1, 7), 0.1)

@@ -35,7 +35,7 @@ def test_async_sub_envs_each_use_their_own_state_and_reset_memory_per_episode():
     cfg_env = LiberoPhysVLAEnvConfig(task="libero_spatial", task_ids=[0], cameras=False, episode_length=50)
     vec = cfg_env.create_envs(n_envs=2, use_async_envs=True)["libero_spatial"][0]
     env_pre, _ = cfg_env.get_env_processors()
-    cfg = PhysVLAConfig(mode="phys", cap=1.0)  # cap 1: the transport EMA shows in the output
+    cfg = PhysVLAConfig.paper(mode="phys", cap=1.0)  # cap 1: the transport EMA shows in the output
     step = PhysVLACorrectorStep(config=cfg.to_dict(), bus="async-test")
     env_pre.steps[0] = PhysVLAStateCaptureStep(bus="async-test")
     post = post_pipeline(step)
@@ -79,7 +79,7 @@ def test_no_state_passes_through_and_counts():
 @pytest.mark.parametrize("mode", ["baseline", "temporal", "phys", "phys_el"])
 def test_the_step_never_raises_and_emits_only_finite_in_bounds_actions(mode):
     bus = get_bus(f"garbage-bus-{mode}")
-    step = PhysVLACorrectorStep(config=PhysVLAConfig(mode=mode).to_dict(), bus=f"garbage-bus-{mode}")
+    step = PhysVLACorrectorStep(config=PhysVLAConfig.paper(mode=mode).to_dict(), bus=f"garbage-bus-{mode}")
     pipe = post_pipeline(step)
     bad = torch.tensor([[np.nan, 0.1, 0.1, 0.0, 0.0, 0.0, 1.0], [3.0, -3.0, 0.2, 0.0, 0.0, 0.0, 1.0]])
     out = pipe(bad)  # no state on the bus yet
@@ -104,7 +104,7 @@ def test_chunks_dtype_and_batch_mismatch():
     bus = get_bus("chunk-bus")
     st = make_state(batch_size=2, obj=(0.5, 0.0, 0.9))  # approach
     bus.publish(st.pack())
-    step = PhysVLACorrectorStep(config=PhysVLAConfig(mode="phys", gripper_rule="veto").to_dict(), bus="chunk-bus")
+    step = PhysVLACorrectorStep(config=PhysVLAConfig.paper(mode="phys", gripper_rule="veto").to_dict(), bus="chunk-bus")
     chunk = torch.ones(2, 5, 7, dtype=torch.float64) * 0.5
     out = post_pipeline(step)(chunk)
     assert out.shape == chunk.shape and out.dtype == torch.float64
@@ -116,7 +116,7 @@ def test_chunks_dtype_and_batch_mismatch():
 
 def test_episode_start_resets_the_memory_of_that_env_only():
     bus = get_bus("episode-bus")
-    cfg = PhysVLAConfig(mode="temporal")
+    cfg = PhysVLAConfig.paper(mode="temporal")
     step = PhysVLACorrectorStep(config=cfg.to_dict(), bus="episode-bus")
     st = make_state(batch_size=2)
     post = post_pipeline(step)
@@ -133,7 +133,7 @@ def test_episode_start_resets_the_memory_of_that_env_only():
 
 @pytest.mark.slow
 def test_save_load_round_trip_in_a_fresh_interpreter(tmp_path):
-    cfg = PhysVLAConfig(mode="phys_el", weighting="task_space", gripper_rule="veto", cap=0.07)
+    cfg = PhysVLAConfig.paper(mode="phys_el", weighting="task_space", gripper_rule="veto", cap=0.07)
     path = add_corrector(tmp_path, cfg)
     entry = json.loads(path.read_text())["steps"][-1]
     assert entry["class"] == "lerobot_physvla.processor.physvla_processor.PhysVLACorrectorStep"
@@ -153,8 +153,8 @@ print(type(step).__module__, step.cfg.mode, step.cfg.weighting, step.cfg.gripper
 
 
 def test_add_corrector_replaces_an_existing_one(tmp_path):
-    add_corrector(tmp_path, PhysVLAConfig(mode="phys"))
-    add_corrector(tmp_path, PhysVLAConfig(mode="temporal"))
+    add_corrector(tmp_path, PhysVLAConfig.paper(mode="phys"))
+    add_corrector(tmp_path, PhysVLAConfig.paper(mode="temporal"))
     steps = json.loads((tmp_path / "policy_postprocessor.json").read_text())["steps"]
     assert [s["config"]["config"]["mode"] for s in steps] == ["temporal"]
 

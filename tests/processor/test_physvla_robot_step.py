@@ -111,7 +111,7 @@ def test_with_branch_b_and_its_guard_any_reading_gives_finite_targets_and_branch
     from lerobot_physvla.core.config import PhysVLAConfig
 
     step = PhysVLARobotActionStep(arm="so101", object_xyz=[0.1, 0.3, 0.0], target_xyz=[0.3, -0.2, 0.0],
-                                  config=PhysVLAConfig(mode="phys_el", gripper_rule="veto").to_dict())
+                                  config=PhysVLAConfig.paper(mode="phys_el", gripper_rule="veto").to_dict())
     p = pipeline(step)
     import warnings
 

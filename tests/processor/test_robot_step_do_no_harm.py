@@ -24,7 +24,7 @@ from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
 MOTORS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
 KEYS = [f"{m}.pos" for m in MOTORS] + ["gripper.pos"]
 EXTREME = [0.0, -1.0, 1e-300, 1e6, -1e6, 1e300, math.nan, math.inf, -math.inf, "garbage", None]
-CONFIGS = {"arm": PRESETS["arm"], "default": PRESETS["default"], "phys_el": PhysVLAConfig(mode="phys_el"),
+CONFIGS = {"arm": PRESETS["arm"], "default": PRESETS["default"], "phys_el": PhysVLAConfig.paper(mode="phys_el"),
            "paper_alg1": PRESETS["paper_alg1"]}
 STEPS: dict = {}
 

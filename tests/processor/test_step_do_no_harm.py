@@ -59,7 +59,7 @@ def test_the_step_never_raises_and_emits_finite_in_bounds_actions(
     from lerobot_physvla.core.config import PRESETS
 
     lay = LAYOUTS[layout]
-    cfg = PRESETS[preset] if preset else PhysVLAConfig(mode=mode)
+    cfg = PRESETS[preset] if preset else PhysVLAConfig.paper(mode=mode)
     weighting = "joint_diag" if lay.dim == 7 and seed % 2 else "task_space"
     cfg = cfg.replace(layout=layout, weighting=weighting)
     bus = f"dnh-{next(_BUS)}"

@@ -34,7 +34,7 @@ def _run(tmp_path, arm, noise, amp_deg, cutoff=5.0, snr_min=3.0, ticks=150, seed
     spec = robot.spec
     q0 = np.asarray(getattr(robot.config, "start_q", np.zeros(len(spec.joints))))
     step = PhysVLARobotActionStep(arm=arm, object_xyz=[0.5, 0.3, 0.0], target_xyz=[0.5, -0.2, 0.0],
-                                  config=PhysVLAConfig(mode="phys_el").to_dict(), velocity_cutoff_hz=cutoff,
+                                  config=PhysVLAConfig.paper(mode="phys_el").to_dict(), velocity_cutoff_hz=cutoff,
                                   noise_snr_min=snr_min)
     proc = RobotProcessorPipeline(steps=[step], to_transition=robot_action_observation_to_transition,
                                   to_output=transition_to_robot_action)

@@ -71,7 +71,7 @@ def _residuals(tmp_path, noise_deg: float, delay_ticks: int, cutoff, compensate_
     src = JointStateSource("so101", 1 / 30, object_xyz=(0.1, 0.3, 0.0), target_xyz=(0.3, -0.2, 0.0),
                            velocity_cutoff_hz=cutoff, state_delay_s=compensate_s)
     adapter = JointTargetAdapter(src.arm)
-    c = Corrector(PhysVLAConfig(mode="phys_el", layout=VIRTUAL, weighting="task_space"), 1)
+    c = Corrector(PhysVLAConfig.paper(mode="phys_el", layout=VIRTUAL, weighting="task_space"), 1)
     out = []
     for t in range(ticks):
         a = {**{f"{m}.pos": float(20 * np.sin(2 * np.pi * t / 90 + k)) for k, m in enumerate(ARM)}, "gripper.pos": 100.0}

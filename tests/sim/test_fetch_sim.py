@@ -66,13 +66,13 @@ def test_reset_is_reproducible_per_seed(scene):
 
 
 def test_clean_expert_succeeds(scene):
-    wins = [_episode(scene, Corrector(PhysVLAConfig(mode="baseline", layout="fetch_4d")), s)[0] for s in range(10)]
+    wins = [_episode(scene, Corrector(PhysVLAConfig.paper(mode="baseline", layout="fetch_4d")), s)[0] for s in range(10)]
     assert sum(wins) >= 9, wins  # measured: 50 of seeds 0..49
 
 
 def test_phys_el_in_the_loop(scene):
     # joint_diag would weight 7 joints onto 4 action entries (the corrector refuses): task space
-    corr = Corrector(PhysVLAConfig(mode="phys_el", layout="fetch_4d", weighting="task_space"))
+    corr = Corrector(PhysVLAConfig.paper(mode="phys_el", layout="fetch_4d", weighting="task_space"))
     for seed in range(3):
         success, sent = _episode(scene, corr, seed)
         assert success and np.isfinite(sent).all() and (np.abs(sent) <= 1.0).all()

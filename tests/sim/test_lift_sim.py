@@ -118,7 +118,7 @@ def test_a_large_place_bias_misses_the_plate(lift_plate):
 
 
 def test_phys_el_in_the_loop_never_passes_through(lift_plate):
-    corrector = Corrector(PhysVLAConfig(mode="phys_el"))
+    corrector = Corrector(PhysVLAConfig.paper(mode="phys_el"))
     success, _ = run(lift_plate, 9, corrector)
     assert success
     assert corrector.steps > 50 and not any(corrector.passthrough_counts.values())

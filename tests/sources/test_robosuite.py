@@ -75,7 +75,7 @@ def test_short_scripted_episode_through_phys_el(libero_task0):
     libero_sim.reset_to_init_state(env, task, 0)
     src = RobosuiteStateSource(env.env)
     src.reset()
-    corr = Corrector(PhysVLAConfig(mode="phys_el"))
+    corr = Corrector(PhysVLAConfig.paper(mode="phys_el"))
     expert = PickPlaceExpert()
     phases, devs = [], []
     for _ in range(45):
