@@ -386,7 +386,7 @@ PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), pla
 # for a policy that shakes: the default + a low-pass before and after the carry whose strength follows
 # the policy's own measured roughness (the median of its last 9 second differences), so a policy that
 # does not shake is left alone (candidate 14's settings). On blocks no decision about it looked at
-# (eval/results/efficacy section 3t): the jittery expert's jerk x0.49 of uncorrected, the Lift / Fetch
+# (docs/decisions/21-smooth-preset.md): the jittery expert's jerk x0.49 of uncorrected, the Lift / Fetch
 # noise sweeps' jerk-degradation ratio 3.96 / 4.78 (the paper's Table A1 asks ~10), every learned ACT
 # within 1 pair of the default; the trade: the jittery expert succeeds 6 pp less than under the
 # default (2 won / 5 lost), which is why it is not the default.

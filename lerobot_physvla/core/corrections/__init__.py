@@ -6,8 +6,8 @@
     place_deceleration   place: deceleration ramp min(1, d_tgt_xy / d_thresh)            eq. 5
     temporal_ema         the `temporal` mode's uniform EMA (the paper's smoothing foil)
 
-Beyond the paper (docs/method.md "Options beyond the paper"): place_redirect, release_veto,
-release_assist (place) and lift_assist (grasp).
+Beyond the paper (docs/method.md; how each was chosen: docs/decisions/): place_redirect, release_veto,
+release_assist (place), lift_assist (grasp) and rim_guide (approach, grasp).
 
 `lerobot_physvla.core.branch_a` composes them by phase (eq. 3).
 """

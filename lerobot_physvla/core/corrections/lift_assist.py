@@ -10,7 +10,7 @@ paper; lift_assist_u > 0).
     the hand has risen RISE_M above where the hold began (the object did not follow: spent until
     the policy opens or the phase changes)
 
-Traced failure (design block, LIBERO init states 0-4, docs/method.md "Candidate 15"): the weaker
+Traced failure (design block, LIBERO init states 0-4, docs/decisions/15-lift-assist.md): the weaker
 single-step ACTs close on the bowl's rim and then hold it, gripper closed, the hand still within
 a millimetre or two, commanding z ~ -0.02 action units, until the episode ends; the fingers stop
 7-15 mm apart where their teacher's rim grasps stop at ~4 mm, a hold their demonstrations never

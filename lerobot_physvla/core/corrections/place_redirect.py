@@ -9,7 +9,7 @@ a proportional move that brings the held object's centre (not the hand's: a rim 
 object centimetres off the hand) to within `tol` of the target's. Inside that tolerance the
 policy keeps its own x, y: a learned policy releases where it means to, and a redirection that
 pinned the object on the target's exact centre held it a centimetre from that point, where it
-waited for the whole episode (eval/results/efficacy section 7). The vertical channel and the
+waited for the whole episode (docs/decisions/default-v2.md). The vertical channel and the
 gripper stay the policy's, so it still decides when to lower and release.
 """
 

@@ -6,7 +6,7 @@
 
 The place redirection (`place_redirect.py`) steers the held object for the whole place phase and
 so takes the horizontal channels from a policy that is still moving to its own release point; a
-learned policy then waits there for the rest of the episode (eval/results/efficacy section 7).
+learned policy then waits there for the rest of the episode (docs/decisions/default-v2.md).
 This correction leaves the policy alone until the one moment its error is certain to matter: it
 opens the gripper with the held object's centre more than `tol` from the target's. Only then is
 the release held back (gripper closed) and the object steered to within `tol`, where the

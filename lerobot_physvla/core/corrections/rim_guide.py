@@ -13,8 +13,8 @@ grasp can close on it (beyond the paper; rim_guide_m > 0).
     phase, the same rule, until the hand is within RIM_ARRIVE_M of rim_guide_m (rho <= rim_guide_m +
     RIM_ARRIVE_M), rises out of the zone, or the policy closes; it never begins there.
 
-Traced failure (design block, LIBERO init states 0-4, expert_jitter, docs/method.md "Candidate 17"):
-of the jitter expert's 9 failures there that the clean expert succeeds on (section 8b's reachable
+Traced failure (design block, LIBERO init states 0-4, expert_jitter, docs/decisions/17-rim-guide.md):
+of the jitter expert's 9 failures there that the clean expert succeeds on (the reachable
 ones), 6 are one aim draw (init state 3: an aim error of 4.9 cm) that sets the expert's rim grasp
 8.5-9.8 cm from the bowl's origin, outside its wall (radius ~5.5-6.6 cm); it closes on nothing and
 the phase stays approach to the end. The shipped default leaves all of them: its approach veto
