@@ -250,12 +250,12 @@ class Corrector:
         a = self._check(actions)
         if state.batch_size != self.batch_size:
             raise ValueError(f"physvla: state holds {state.batch_size} envs, corrector has {self.batch_size}")
-        return self._correct(a, state.pack(), t0)
+        return self._run(a, state.pack(), t0)
 
     def correct_packed(self, actions, flat: np.ndarray) -> np.ndarray:
         """As `__call__`, with the states already packed: flat (B, packed_size(n)) float64."""
         t0 = time.perf_counter()
-        return self._correct(self._check(actions), flat, t0)
+        return self._run(self._check(actions), flat, t0)
 
     def correct_stream(self, actions, flat, rows=None, k: int = 0) -> np.ndarray:
         """One step of a stream of control steps: as correct_packed for (B, A) actions, and an env
@@ -268,8 +268,8 @@ class Corrector:
 
         Where it can -- actions a C-contiguous, aligned, writeable float32 / float64 (B, A) numpy
         array, flat the (B, L) float64 packed states (the same), not profiling -- this is one compiled call
-        (tick.stream_tick) and the output comes back in the actions' dtype; elsewhere the same in
-        steps (resets, then correct_packed), float64.
+        (tick.stream_tick) and the output comes back in the actions' dtype; elsewhere the same through the
+        one path every entry takes (`_run`: resets, the tick, the recording), float64.
         """
         t0 = time.perf_counter()
         if rows is None:
@@ -301,17 +301,7 @@ class Corrector:
                 self._count_events(True)
             self._t_total = time.perf_counter() - t0
             return out
-        f = np.asarray(flat)
-        if f.ndim == 2 and f.shape[0] == self.batch_size and f.shape[1] > EPISODE_STEP:
-            step = f[:, EPISODE_STEP].astype(np.float64)
-            fresh = np.isnan(self._ep_last) | (step < self._ep_last)
-            if fresh.any():
-                self.reset(np.flatnonzero(fresh))
-            self._ep_last[:] = step
-        out = self.correct_packed(actions, flat)
-        if rows.shape[0]:
-            record_row(rows, k, np.asarray(actions), out, f, self.diag_buffer)
-        return out
+        return self._run(self._check(actions), flat, t0, stream=True, rows=rows, k=k)
 
     def _set_width(self, width: int) -> None:
         """A new packed-state width: its joint count, checked once (ValueError for a width no arm
@@ -321,44 +311,46 @@ class Corrector:
             self.branch_b.check_arm(n)
         self._flat_width, self._n = width, n
 
-    def _correct(self, a: np.ndarray, flat: np.ndarray, t0: float) -> np.ndarray:
-        if flat.ndim != 2 or flat.shape[0] != self.batch_size:
-            raise ValueError(f"physvla: packed state of shape {flat.shape}, corrector has {self.batch_size} envs")
-        if flat.shape[1] != self._flat_width:
-            self._set_width(flat.shape[1])
-        n = self._n
-        if flat.dtype != np.float64 or not flat.flags.c_contiguous:
-            flat = np.ascontiguousarray(flat, dtype=np.float64)
-        self.steps += self.batch_size
+    def _run(self, a: np.ndarray, flat, t0: float, stream: bool = False, through: bool = False,
+             rows: np.ndarray = _NO_ROWS, k: int = 0) -> np.ndarray:
+        """The one way actions go through the corrector, whichever entry they came by: a (B, A) step or a
+        (B, T, A) chunk, its steps one `_tick` each (only the first commits memory and diagnostics; with
+        chunk="first" the later ones go through the safety net alone). stream: an env whose packed
+        episode_step went back, or that is new, starts afresh first; rows, k: the recording row to fill.
+        through: every step goes through the safety net alone (`passthrough`)."""
+        if not through:  # the packed states (B, L) as the kernels take them: C float64, the width checked once
+            if type(flat) is not np.ndarray:
+                flat = np.asarray(flat)
+            if flat.ndim != 2 or flat.shape[0] != self.batch_size:
+                raise ValueError(f"physvla: packed state of shape {flat.shape}, corrector has {self.batch_size} envs")
+            if flat.shape[1] != self._flat_width:
+                self._set_width(flat.shape[1])
+            if flat.dtype != np.float64 or not flat.flags.c_contiguous:
+                flat = np.ascontiguousarray(flat, dtype=np.float64)
+            if stream and flat.shape[1] > EPISODE_STEP:
+                step = flat[:, EPISODE_STEP]
+                fresh = np.isnan(self._ep_last) | (step < self._ep_last)
+                if fresh.any():
+                    self.reset(np.flatnonzero(fresh))
+                self._ep_last[:] = step
+            self.steps += self.batch_size
         if a.ndim == 2:
-            out = self._step(a, flat, n, commit=True)
+            out = self._tick(a, flat, True, through)
         else:
             out = np.empty_like(a)
             n_corrected = a.shape[1] if self.cfg.chunk == "all" else 1
             for t in range(a.shape[1]):
-                at = np.ascontiguousarray(a[:, t])
-                if t < n_corrected:
-                    out[:, t] = self._step(at, flat, n, commit=(t == 0))
-                else:  # chunk="first": later steps pass through, still inside the safety net
-                    o = at.copy()
-                    self._guarded(o, at, np.zeros(self.batch_size, np.int8), True, False)
-                    out[:, t] = o
-        self._t_total = time.perf_counter() - t0
+                out[:, t] = self._tick(np.ascontiguousarray(a[:, t]), flat, t == 0, through or t >= n_corrected)
+        if rows is not _NO_ROWS and rows.shape[0]:
+            record_row(rows, k, a, out, flat, self.diag_buffer)
+        if not through:
+            self._t_total = time.perf_counter() - t0
         return out
 
     def passthrough(self, actions, reason: str) -> np.ndarray:
         """The actions passed through (clipped, non-finite ones held) for a reason the caller knows
         (e.g. no state reached it); counted in passthrough_counts under `reason`, not warned."""
-        a = self._check(actions)
-        out = a.copy()
-        steps = [a] if a.ndim == 2 else [np.ascontiguousarray(a[:, t]) for t in range(a.shape[1])]
-        for t, at in enumerate(steps):
-            o = at.copy()
-            self._guarded(o, at, np.zeros(self.batch_size, np.int8), True, t == 0)
-            if a.ndim == 2:
-                out = o
-            else:
-                out[:, t] = o
+        out = self._run(self._check(actions), None, 0.0, through=True)
         self.passthrough_counts[reason] += self.batch_size  # the caller, who knows why, warns
         return out
 
@@ -422,13 +414,6 @@ class Corrector:
             ip[IP_BRANCH_B] = self._b_on
         self._iws_n = -1  # the arena's copy is refreshed at the next streamed call
 
-    def _guarded(self, out, a_raw, status, every: bool, commit: bool) -> None:
-        lay = self.layout
-        g = guard(out, a_raw, status, every, self._absolute, self._hold0, lay.low, lay.high, self._last_out,
-                  self._has_last, commit)
-        if g.any():
-            self._count_guards(g)
-
     def _count_guards(self, g: np.ndarray) -> None:
         for code in (GUARD_CLIPPED, GUARD_HELD):
             k = int((g == code).sum())
@@ -438,11 +423,19 @@ class Corrector:
             self._warn_once("held", "physvla: the policy emitted a non-finite action; the env executes the "
                             "layout's hold action instead (0 deltas, last gripper command); see guard_counts")
 
-    def _step(self, a_raw: np.ndarray, flat: np.ndarray, n: int, commit: bool) -> np.ndarray:
-        """One control step for all envs, one compiled call (tick.py; the stages one by one and
-        timed apart when profiling). Only the committed step (a chunk's first) updates memory
-        and the diagnostics."""
-        ip = self._int_params(n)
+    def _tick(self, a_raw: np.ndarray, flat, commit: bool, through: bool) -> np.ndarray:
+        """One control step for all envs: the fused compiled tick (tick.correct_tick), or its stages one
+        by one, timed apart, when profiling, or the safety net alone when `through`. Only the committed
+        step (a chunk's first) updates memory and the diagnostics."""
+        if through:
+            out = a_raw.copy()
+            lay = self.layout
+            g = guard(out, a_raw, np.zeros(self.batch_size, np.int8), True, self._absolute, self._hold0, lay.low,
+                      lay.high, self._last_out, self._has_last, commit)
+            if g.any():
+                self._count_guards(g)
+            return out
+        ip = self._int_params(self._n)
         if self.profile:
             out, events = self._staged(a_raw, flat, ip, commit)
         else:
