@@ -31,7 +31,8 @@ import numpy as np
 from lerobot_physvla.core.blend import blend, guard
 from lerobot_physvla.core.branch_a import phase_step
 from lerobot_physvla.core.config import PhysVLAConfig
-from lerobot_physvla.core.corrections.base import N_MEM, channel_index, params
+from lerobot_physvla.core.corrections import channel_index, params
+from lerobot_physvla.core.corrections.slots import N_MEM
 from lerobot_physvla.core.direct_call import direct_entry
 from lerobot_physvla.core.dynamics import ELGate, el_gate
 from lerobot_physvla.core.lowpass import N_LP_MEM, adaptive_lowpass

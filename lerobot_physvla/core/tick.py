@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from lerobot_physvla.core.blend import blend, guard
-from lerobot_physvla.core.branch_a import SOURCE_FILES, phase_step, source_key
+from lerobot_physvla.core.branch_a import DISPATCH_SOURCE, SOURCE_FILES, phase_step, source_key
 from lerobot_physvla.core.dynamics import el_gate
 from lerobot_physvla.core.lowpass import adaptive_lowpass
 from lerobot_physvla.core.state import INVALID_DT, OK, SINGULAR, field_offsets
@@ -38,7 +38,7 @@ from lerobot_physvla.core.state import INVALID_DT, OK, SINGULAR, field_offsets
 _CORE = Path(__file__).resolve().parent
 TICK_SOURCE_FILES = (*SOURCE_FILES, Path(__file__).resolve(), _CORE / "blend.py", _CORE / "dynamics.py",
                      _CORE / "lowpass.py")
-TICK_SOURCE_KEY = source_key(TICK_SOURCE_FILES)
+TICK_SOURCE_KEY = source_key(TICK_SOURCE_FILES, DISPATCH_SOURCE)
 
 # layout of the integer parameters (module doc)
 (IP_PHASE, IP_B, IP_N, IP_POS, IP_FLAGS, IP_GRIP, IP_TEMPORAL, IP_BASELINE, IP_BRANCH_B, IP_VETO, IP_LOWPASS,

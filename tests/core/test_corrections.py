@@ -15,9 +15,9 @@ from lerobot_physvla.core.config import FETCH_4D, LIBERO_OSC_POSE, PhysVLAConfig
 from lerobot_physvla.core.corrections import (
     approach_veto, grasp_guidance, place_deceleration, temporal_ema, transport_smoothing,
 )
-from lerobot_physvla.core.corrections.base import (
-    ACTIVE, D_TGT_XY, EEF, EMA, N_GEO, N_MEM, OBJ, channel_index, params,
-)
+from lerobot_physvla.core.corrections import channel_index, params
+from lerobot_physvla.core.corrections.base import D_TGT_XY, EEF, N_GEO, N_MEM, OBJ
+from lerobot_physvla.core.corrections.transport_smoothing import ACTIVE, EMA
 
 PKG = Path(branch_a.__file__).resolve().parents[2]
 
@@ -224,7 +224,7 @@ def test_release_carry_holds_the_hand_down_and_steers_to_half_the_tolerance():
 
 
 def test_release_carry_keeps_a_set_down_object_in_place_while_it_is_at_the_hand():
-    from lerobot_physvla.core.branch_a import carried_phase
+    from lerobot_physvla.core.corrections.release_veto import carried_phase
     from lerobot_physvla.core.corrections.base import CARRIED
     from lerobot_physvla.core.phase import GRASP, PLACE, TRANSPORT
 
@@ -422,7 +422,7 @@ def _track(geo, mem, steps):
 
 
 def test_rim_guide_pulls_a_settled_hand_onto_the_rim_along_its_own_line_only_in_x_y():
-    from lerobot_physvla.core.corrections.base import RIM_ON, RIM_SETTLE_STEPS
+    from lerobot_physvla.core.corrections.rim_guide import RIM_ON, RIM_SETTLE_STEPS
     from lerobot_physvla.core.corrections.rim_guide import rim_guide
 
     idx, geo, p, mem, a = _beside()
@@ -442,7 +442,7 @@ def test_rim_guide_pulls_a_settled_hand_onto_the_rim_along_its_own_line_only_in_
 
 @pytest.mark.parametrize("case", ["moving", "closing", "high", "far", "look_ahead"])
 def test_rim_guide_leaves_a_hand_that_passes_by_closes_or_is_out_of_the_zone(case):
-    from lerobot_physvla.core.corrections.base import RIM_ON, RIM_SETTLE_STEPS
+    from lerobot_physvla.core.corrections.rim_guide import RIM_ON, RIM_SETTLE_STEPS
     from lerobot_physvla.core.corrections.rim_guide import RIM_HEIGHT_M, RIM_REACH_M, rim_guide
 
     eef = {"high": (0.031, -0.085, 0.898 + RIM_HEIGHT_M + 0.01), "far": (0.0, -RIM_REACH_M - 0.01, 0.968)}
@@ -465,7 +465,7 @@ def test_rim_guide_into_grasp_goes_on_to_the_rim_only_for_a_pull_begun_in_approa
     phase to grasp; with rim_guide_into_grasp the pull goes on until the hand is within 5 mm of the rim
     point, without it (and for a hand that was not being pulled) the grasp phase leaves x, y alone."""
     from lerobot_physvla.core.branch_a import branch_a_row
-    from lerobot_physvla.core.corrections.base import RIM_ON, RIM_SETTLE_STEPS
+    from lerobot_physvla.core.corrections.rim_guide import RIM_ON, RIM_SETTLE_STEPS
     from lerobot_physvla.core.corrections.rim_guide import RIM_ARRIVE_M
     from lerobot_physvla.core.phase import APPROACH, GRASP
 
@@ -508,7 +508,7 @@ def test_rim_guide_into_grasp_goes_on_to_the_rim_only_for_a_pull_begun_in_approa
 
 def test_branch_a_runs_the_rim_guide_in_approach_only_leaving_the_gripper_to_the_policy():
     from lerobot_physvla.core.branch_a import branch_a_row
-    from lerobot_physvla.core.corrections.base import RIM_AT, RIM_ON, RIM_SETTLE_STEPS
+    from lerobot_physvla.core.corrections.rim_guide import RIM_AT, RIM_ON, RIM_SETTLE_STEPS
     from lerobot_physvla.core.phase import APPROACH, GRASP
 
     idx, geo, p, mem, a = _beside()

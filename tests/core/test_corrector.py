@@ -376,7 +376,7 @@ def test_the_shipped_default_pulls_a_settled_miss_onto_the_rim_and_the_arm_prese
     first steps (the hand has not been seen settled), then commands x, y toward the rim point on the
     hand's own line, z and the gripper the policy's; `arm` executes the policy's action."""
     from lerobot_physvla.core.config import PRESETS
-    from lerobot_physvla.core.corrections.base import RIM_SETTLE_STEPS
+    from lerobot_physvla.core.corrections.rim_guide import RIM_SETTLE_STEPS
 
     st = make_state(eef=(0.031, -0.085, 0.968), obj=(0.0, 0.0, 0.898), target=(0.2, 0.1, 0.9))
     hover = np.array([[0.1, -0.05, -0.3, 0.0, 0.0, 0.0, -1.0]])  # open, a small noisy move

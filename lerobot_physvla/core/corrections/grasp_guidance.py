@@ -7,7 +7,12 @@ p* and p_eef in metres, scale = metres per action unit, so the first term is in 
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import BETA, EEF, METRES_PER_UNIT, OBJ, OFFSET_X_M
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import EEF, METRES_PER_UNIT, OBJ, Correction
+from lerobot_physvla.core.phase import GRASP
+
+PARAMS = ("BETA", "OFFSET_X_M", "OFFSET_Y_M", "OFFSET_Z_M")  # the blend weight; the grasp point's offset, m
+BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M = slots.params(__file__)
 
 
 @njit(cache=True, error_model="numpy")
@@ -16,3 +21,8 @@ def grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit):
     beta, scale = p[BETA], p[METRES_PER_UNIT]
     for k in range(3):  # metres -> action units with the layout's scale
         a_phys[idx[k]] = beta * (geo[OBJ + k] + p[OFFSET_X_M + k] - geo[EEF + k]) / scale + (1.0 - beta) * a_raw[idx[k]]
+
+
+CORRECTION = Correction("grasp_guidance", GRASP, 0, grasp_guidance, values={
+    "BETA": lambda c, lay: c.beta, "OFFSET_X_M": lambda c, lay: c.grasp_offset_m[0],
+    "OFFSET_Y_M": lambda c, lay: c.grasp_offset_m[1], "OFFSET_Z_M": lambda c, lay: c.grasp_offset_m[2]})

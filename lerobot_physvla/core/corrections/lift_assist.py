@@ -27,9 +27,16 @@ rest, and the assist raised it for 22 steps: candidate 12's run of that episode 
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import (ASSIST_STEPS, EEF, FINGERS, GRIPPER, GRIPPER_OPEN, LIFT,
-                                                   LIFT_ANCHOR, LIFT_ASSIST_U, LIFT_AT_REST, LIFT_STALL, Z)
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import EEF, FINGERS, GRIPPER, GRIPPER_OPEN, LIFT, Z, Correction
 from lerobot_physvla.core.corrections.release_assist import STILL_M
+from lerobot_physvla.core.phase import GRASP
+
+PARAMS = ("LIFT_ASSIST_U", "LIFT_AT_REST", "LIFT_ASSIST_STEPS")  # the z command, action units; 1.0: at rest only; steps held
+# steps held still unlifted (>= the steps: lifting; -1: spent); the hand (m, xyz) and the fingers' opening (m) where it began
+MEMORY = (("LIFT_STALL", 1), ("LIFT_ANCHOR", 4))
+LIFT_ASSIST_U, LIFT_AT_REST, ASSIST_STEPS = slots.params(__file__)
+LIFT_STALL, LIFT_ANCHOR = slots.memory(__file__)
 
 FINGERS_M = 0.0025  # fingers stopped at least this far apart: they hold something, metres
 FINGER_STILL_M = 0.001  # and have stopped closing: within this of their opening where the hold began, metres
@@ -71,3 +78,16 @@ def lift_assist(a_raw, a_phys, idx, geo, p, mem, commit):
                 mem[LIFT_ANCHOR + k] = geo[EEF + k]
             mem[LIFT_ANCHOR + 3] = geo[FINGERS]
         mem[LIFT_STALL] = n + 1.0 if held else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def lift_assist_commit(phase, geo, p, mem):
+    """The count starts over outside the grasp phase."""
+    if phase != GRASP:
+        mem[LIFT_STALL] = 0.0
+
+
+CORRECTION = Correction("lift_assist", GRASP, 1, lift_assist, values={
+    "LIFT_ASSIST_U": lambda c, lay: c.lift_assist_u, "LIFT_AT_REST": lambda c, lay: c.lift_assist_at_rest,
+    "LIFT_ASSIST_STEPS": lambda c, lay: c.assist_steps},
+    on=lambda c: c.lift_assist_u > 0.0, commit=lift_assist_commit)

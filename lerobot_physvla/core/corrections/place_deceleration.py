@@ -5,7 +5,12 @@
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import D_THRESH_M, D_TGT_XY
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import D_TGT_XY, Correction
+from lerobot_physvla.core.phase import PLACE
+
+PARAMS = ("D_THRESH_M",)  # the deceleration's scale, m
+(D_THRESH_M,) = slots.params(__file__)
 
 
 @njit(cache=True, error_model="numpy")
@@ -14,3 +19,7 @@ def place_deceleration(a_raw, a_phys, idx, geo, p, mem, commit):
     ramp = min(1.0, geo[D_TGT_XY] / p[D_THRESH_M])  # eq. 5
     for k in range(3):
         a_phys[idx[k]] = ramp * a_raw[idx[k]]
+
+
+CORRECTION = Correction("place_deceleration", PLACE, 0, place_deceleration,
+                        values={"D_THRESH_M": lambda c, lay: c.d_thresh_m}, on=lambda c: c.place_rule == "decelerate")

@@ -15,7 +15,12 @@ gripper stay the policy's, so it still decides when to lower and release.
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import METRES_PER_UNIT, OBJ, REDIRECT_GAIN, REDIRECT_TOL_M, TGT
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import METRES_PER_UNIT, OBJ, TGT, Correction
+from lerobot_physvla.core.phase import PLACE
+
+PARAMS = ("REDIRECT_GAIN", "REDIRECT_TOL_M")  # the steering gain (action units per unit of error); its tolerance, m
+REDIRECT_GAIN, REDIRECT_TOL_M = slots.params(__file__)
 
 
 @njit(cache=True, error_model="numpy")
@@ -36,3 +41,8 @@ def place_redirect(a_raw, a_phys, idx, geo, p, mem, commit):
     if k > 0.0:
         a_phys[idx[0]] = k * ex
         a_phys[idx[1]] = k * ey
+
+
+CORRECTION = Correction("place_redirect", PLACE, 0, place_redirect, values={
+    "REDIRECT_GAIN": lambda c, lay: c.redirect_gain, "REDIRECT_TOL_M": lambda c, lay: c.redirect_tol_m},
+    on=lambda c: c.place_rule == "redirect")

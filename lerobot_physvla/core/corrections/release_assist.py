@@ -27,8 +27,15 @@ still" means; the command is a proxy for it.
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import (ANCHOR, ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND, EEF, GRIPPER,
-                                                   GRIPPER_OPEN, LIFT, OBJ, REDIRECT_TOL_M, STALL, TGT)
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, LIFT, OBJ, TGT, Correction
+from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M
+from lerobot_physvla.core.phase import PLACE
+
+PARAMS = ("ASSIST_M", "ASSIST_STEPS", "ASSIST_STILL_HAND")  # the highest hold, m; steps held; 1.0: judged by the hand
+MEMORY = (("STALL", 1), ("ANCHOR", 3))  # steps held still over the target; the hand where the hold began, m
+ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND = slots.params(__file__)
+STALL, ANCHOR = slots.memory(__file__)
 
 STILL_U = 0.05  # the policy commands no motion: every position channel below this, action units
 STILL_M = 0.003  # assist_still=hand: the hand stays within this of where the hold began, metres
@@ -69,3 +76,16 @@ def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
             for k in range(3):
                 mem[ANCHOR + k] = geo[EEF + k]
         mem[STALL] = mem[STALL] + 1.0 if stalled else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def release_assist_commit(phase, geo, p, mem):
+    """The count of still steps starts over outside the place phase."""
+    if phase != PLACE:
+        mem[STALL] = 0.0
+
+
+CORRECTION = Correction("release_assist", PLACE, 1, release_assist, values={
+    "ASSIST_M": lambda c, lay: c.release_assist_m, "ASSIST_STEPS": lambda c, lay: c.assist_steps,
+    "ASSIST_STILL_HAND": lambda c, lay: c.assist_still == "hand"},
+    on=lambda c: c.release_assist_m > 0.0 and c.place_rule == "release_veto", commit=release_assist_commit)

@@ -23,9 +23,16 @@ steers to half the tolerance before it lets the policy's open through (not to it
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import (GRIPPER, GRIPPER_OPEN, HOLD, HOLD_STEPS, REDIRECT_TOL_M,
-                                                   RELEASE_CARRY, Z)
-from lerobot_physvla.core.corrections.place_redirect import steer
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, OBJ, Z, Correction
+from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M, steer
+from lerobot_physvla.core.phase import GRASP, PLACE
+
+PARAMS = ("HOLD_STEPS", "RELEASE_CARRY")  # the longest hold, control steps; 1.0: release_carry
+MEMORY = (("HOLD", 1), ("CARRIED", 1))  # control steps held back in a row; 1.0: the object carried to place is at the hand
+HOLD_STEPS, RELEASE_CARRY = slots.params(__file__)
+HOLD, CARRIED = slots.memory(__file__)
+CARRY_REACH_M = 0.10  # release_carry: the object counts as at the hand within this of it (3-D), m
 
 
 @njit(cache=True, error_model="numpy")
@@ -48,3 +55,28 @@ def release_veto(a_raw, a_phys, idx, geo, p, mem, commit):
                 a_phys[idx[Z]] = 0.0  # the hand does not rise while it holds the release back
     if commit:  # count held (or yielded) steps in a row; anything else starts over
         mem[HOLD] = min(mem[HOLD] + 1.0, p[HOLD_STEPS]) if miss else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def release_veto_commit(phase, geo, p, mem):
+    """The count of held steps starts over outside the place phase."""
+    if phase != PLACE:
+        mem[HOLD] = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def carried_phase(ph, g, mem, commit):
+    """release_carry: an object carried to the place phase stays in place while it is at the hand
+    (within CARRY_REACH_M, 3-D), even when it is set down (its lift below h_lift would make eq. 3
+    say grasp); the memory ends when the object leaves the hand."""
+    dx, dy, dz = g[OBJ] - g[EEF], g[OBJ + 1] - g[EEF + 1], g[OBJ + 2] - g[EEF + 2]
+    at_hand = dx * dx + dy * dy + dz * dz < CARRY_REACH_M * CARRY_REACH_M
+    carried = at_hand and (ph == PLACE or mem[CARRIED] > 0.5)
+    if commit:
+        mem[CARRIED] = 1.0 if carried else 0.0
+    return PLACE if carried and ph == GRASP else ph
+
+
+CORRECTION = Correction("release_veto", PLACE, 0, release_veto, values={
+    "HOLD_STEPS": lambda c, lay: c.hold_steps, "RELEASE_CARRY": lambda c, lay: c.release_carry},
+    on=lambda c: c.place_rule == "release_veto", commit=release_veto_commit)

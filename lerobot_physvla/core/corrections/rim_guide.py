@@ -36,8 +36,18 @@ on init states 20-24; not shipped, off in every preset.
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_OPEN, METRES_PER_UNIT, OBJ, RIM_AT,
-                                                   RIM_GUIDE_M, RIM_ON, RIM_SETTLE_STEPS, RIM_TRACK, X, Y)
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, METRES_PER_UNIT, OBJ, X, Y, Correction
+from lerobot_physvla.core.phase import APPROACH, GRASP
+
+PARAMS = ("RIM_GUIDE_M",)  # the distance from the object's origin the hand is pulled to, m
+# the hand's x, y (m) over the last RIM_SETTLE_STEPS committed steps; steps recorded so far; 1.0 while it pulls
+MEMORY = (("RIM_TRACK", 10), ("RIM_AT", 1), ("RIM_ON", 1))
+(RIM_GUIDE_M,) = slots.params(__file__)
+RIM_TRACK, RIM_AT, RIM_ON = slots.memory(__file__)
+ON_RIM_GUIDE_GRASP = slots.P_SLOTS["ON_RIM_GUIDE_GRASP"]  # rim_guide_grasp.py goes on with this pull in the grasp phase
+RIM_SETTLE_STEPS = 5  # a hand that moved under RIM_SETTLE_M in this many control steps has settled
+assert MEMORY[0][1] == 2 * RIM_SETTLE_STEPS  # RIM_TRACK: x, y for each of them
 
 RIM_REACH_M = 0.14  # the zone beside the object: the hand within this of its origin horizontally, metres
 RIM_HEIGHT_M = 0.15  # and below this above it (a policy's hover over a bowl, ~0.135 m for the expert), metres
@@ -52,20 +62,6 @@ def rim_guide(a_raw, a_phys, idx, geo, p, mem, commit):
     gripper untouched. Called in the approach phase only; rim_track keeps the hand's history."""
     dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
     on = low_open and 1e-9 < rho < RIM_REACH_M and (mem[RIM_ON] > 0.5 or _settled(geo, mem))
-    if on:
-        _pull(a_phys, idx, geo, p, dx, dy, rho)
-    if commit:
-        mem[RIM_ON] = 1.0 if on else 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def rim_guide_grasp(a_raw, a_phys, idx, geo, p, mem, commit):
-    """Grasp phase: a pull latched in the approach phase (mem[RIM_ON]) goes on onto rim_guide_m while
-    the hand is further than RIM_ARRIVE_M outside it, low (RIM_HEIGHT_M) and open; x, y only."""
-    if mem[RIM_ON] < 0.5:
-        return
-    dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
-    on = low_open and p[RIM_GUIDE_M] + RIM_ARRIVE_M < rho
     if on:
         _pull(a_phys, idx, geo, p, dx, dy, rho)
     if commit:
@@ -107,3 +103,16 @@ def rim_track(geo, mem):
     k = RIM_TRACK + 2 * (int(mem[RIM_AT]) % RIM_SETTLE_STEPS)
     mem[k], mem[k + 1] = geo[EEF], geo[EEF + 1]
     mem[RIM_AT] += 1.0
+
+
+@njit(cache=True, error_model="numpy")
+def rim_guide_commit(phase, geo, p, mem):
+    """The pull ends outside the approach phase (unless rim_guide_grasp goes on with it in the grasp phase);
+    the hand's x, y are recorded on every committed step, in every phase, for the settle test."""
+    if phase != APPROACH and not (phase == GRASP and p[ON_RIM_GUIDE_GRASP] > 0.5):
+        mem[RIM_ON] = 0.0
+    rim_track(geo, mem)
+
+
+CORRECTION = Correction("rim_guide", APPROACH, 0, rim_guide, values={"RIM_GUIDE_M": lambda c, lay: c.rim_guide_m},
+                        on=lambda c: c.rim_guide_m > 0.0, replaces=("approach_veto",), commit=rim_guide_commit)

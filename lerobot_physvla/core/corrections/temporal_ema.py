@@ -3,7 +3,13 @@ smoothing baseline, not a Branch A correction; it shares their signature and mem
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import ACTIVE, ALPHA_TEMPORAL, EMA
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import Correction
+
+PARAMS = ("ALPHA_TEMPORAL",)  # the EMA's factor
+MEMORY = (("TEMPORAL_EMA", 3), ("TEMPORAL_ACTIVE", 1))  # the EMA (x, y, z, action units); 1.0: it holds a value
+(ALPHA_TEMPORAL,) = slots.params(__file__)
+EMA, ACTIVE = slots.memory(__file__)
 
 
 @njit(cache=True, error_model="numpy")
@@ -19,3 +25,8 @@ def temporal_ema(a_raw, a_phys, idx, geo, p, mem, commit):
             mem[EMA + k] = e
     if commit:
         mem[ACTIVE] = 1.0
+
+
+# the temporal mode's EMA: in every phase of that mode, instead of Branch A (core/branch_a.py temporal_row)
+CORRECTION = Correction("temporal_ema", None, 0, temporal_ema, values={"ALPHA_TEMPORAL": lambda c, lay: c.alpha_temporal},
+                        on=lambda c: c.mode == "temporal")

@@ -7,7 +7,14 @@ The EMA starts from the current (biased) action on the first transport step.
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import ACTIVE, ALPHA_TRANSPORT, EMA, LIFT_BIAS_U
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import Correction
+from lerobot_physvla.core.phase import TRANSPORT
+
+PARAMS = ("ALPHA_TRANSPORT", "LIFT_BIAS_U")  # the EMA's factor; the lift bias, action units
+MEMORY = (("TRANSPORT_EMA", 3), ("TRANSPORT_ACTIVE", 1))  # the EMA (x, y, z, action units); 1.0: it holds a value
+ALPHA_TRANSPORT, LIFT_BIAS_U = slots.params(__file__)
+EMA, ACTIVE = slots.memory(__file__)
 
 
 @njit(cache=True, error_model="numpy")
@@ -22,3 +29,14 @@ def transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit):
         a_phys[idx[k]] = e
         if commit:
             mem[EMA + k] = e
+
+
+@njit(cache=True, error_model="numpy")
+def transport_commit(phase, geo, p, mem):
+    """The EMA holds a value only while the previous committed step was in transport."""
+    mem[ACTIVE] = 1.0 if phase == TRANSPORT else 0.0
+
+
+CORRECTION = Correction("transport_smoothing", TRANSPORT, 0, transport_smoothing, values={
+    "ALPHA_TRANSPORT": lambda c, lay: c.alpha_transport, "LIFT_BIAS_U": lambda c, lay: c.lift_bias_m / lay.metres_per_unit},
+    commit=transport_commit)
