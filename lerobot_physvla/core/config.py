@@ -1,8 +1,11 @@
 """Configuration of the corrector: the action layout and every hyperparameter.
 
-Defaults are the paper's (Table "Hyperparameter table", App. A) plus the ones SPEC adds
-(h_lift, action layout, gripper rule, EL weighting and mode, eps, r0). Nothing here imports
-LeRobot; the LeRobot glue turns `--physvla.*` flags into a `PhysVLAConfig`.
+`PhysVLAConfig` is assembled from the fields that belong to no one correction (CORE_FIELDS, LATE_FIELDS:
+mode and layout, the blender, the phase machine, the gripper veto, the place rule, Branch B, the low-pass)
+and the fields each correction declares in its own file (core/corrections/*.py). Its defaults are the
+shipped default; the paper's values (App. A's hyperparameter table, and the ones SPEC adds: h_lift, the
+layout, the gripper rule, the EL weighting and mode, eps, r0) are `PhysVLAConfig.paper()`. Nothing here
+imports LeRobot; the LeRobot glue turns `--physvla.*` flags into a `PhysVLAConfig`.
 """
 
 from __future__ import annotations
@@ -13,6 +16,9 @@ from typing import Literal
 
 import numpy as np
 
+from lerobot_physvla.core.corrections import CORRECTIONS
+from lerobot_physvla.core.corrections.base import Field
+
 Mode = Literal["baseline", "temporal", "phys", "phys_el"]
 MODES: tuple[str, ...] = ("baseline", "temporal", "phys", "phys_el")
 EL_MODES: tuple[str, ...] = ("soft", "gated", "off")
@@ -21,7 +27,6 @@ GRIPPER_RULES: tuple[str, ...] = ("blend", "veto")
 CHUNK_MODES: tuple[str, ...] = ("all", "first")
 PLACE_RULES: tuple[str, ...] = ("decelerate", "redirect", "release_veto")
 PHASE_REFS: tuple[str, ...] = ("eef", "object")
-ASSIST_STILL: tuple[str, ...] = ("action", "hand")  # what makes a hold still for the release assist
 LOWPASS_RULES: tuple[str, ...] = ("off", "adaptive")
 LOWPASS_SPACES: tuple[str, ...] = ("action", "target")
 LOWPASS_ROUGH: tuple[str, ...] = ("ema", "median")  # the low-pass's roughness estimate (core/lowpass.py)
@@ -110,100 +115,72 @@ FETCH_4D = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, metres_per_unit=0.05, g
 LAYOUTS: dict[str, ActionLayout] = {"libero_osc_pose": LIBERO_OSC_POSE, "fetch_4d": FETCH_4D}
 
 
-@dataclass
-class PhysVLAConfig:
-    """The corrector's configuration. `PhysVLAConfig()` is the shipped default, what
-    `--policy.postprocess=physvla` applies; `PhysVLAConfig.paper(**changes)` is the paper's main text
-    with every option beyond it off; `preset(name, **changes)` is any named preset (PRESETS).
-    docs/method.md gives every field its equation, unit and evidence. The fields, by concept:
+# The fields that belong to no one correction, by concept: (heading, fields). Each correction's own fields
+# are declared in its file (core/corrections/*.py, `Correction.fields`); PhysVLAConfig is assembled from both.
+CORE_FIELDS: tuple = (
+    ("what runs, on which action vector", (
+        Field("mode", str, "phys", "phys_el", "baseline (identity) | temporal (uniform EMA) | phys (Branch A) | "
+              "phys_el (A + B)"),
+        Field("layout", str | ActionLayout, "libero_osc_pose", "libero_osc_pose", "a name in LAYOUTS or an ActionLayout"),
+    )),
+    ("the blender (eq. 2)", (
+        Field("cap", float, 0.05, 0.05, "the authority c of the corrected action"),
+        Field("phase_caps", tuple[float, ...], (1.0, 1.0, 0.0, 1.0), (), "the authority per phase (approach, grasp, "
+              "transport, place), in place of cap; () = cap in every phase"),
+        Field("chunk_phase_caps", tuple[float, ...], (), (), "phase_caps for a policy that executes open-loop chunks "
+              "(for_policy); () = phase_caps"),
+        Field("chunk", str, "all", "all", "all | first: which steps of a (B, T, A) chunk are corrected"),
+        Field("gripper_rule", str, "veto", "blend", "blend (the gripper goes through the blender) | veto (opened in "
+              "full where no grasp can close on the object)"),
+    )),
+    ("the phase machine (eq. 3)", (
+        Field("delta_grasp_m", float, 0.06, 0.06, "the grasp envelope, m"),
+        Field("h_lift_m", float, 0.02, 0.02, "the lift above its rest that counts as lifted, m"),
+        Field("phase_ref", str, "object", "eef", "eef | object: what the place distance measures from once the "
+              "object is lifted"),
+    )),
+    ("the gripper veto (gripper_rule=veto)", (
+        Field("veto_height_m", float, 0.06, 0.0, "a close in the grasp phase with the hand more than this above the "
+              "object's origin is vetoed too, m; 0 = approach phase only"),
+        Field("veto_reach_m", float, 0.10, 0.0, "in approach, the veto applies from this far from the object "
+              "horizontally (or above veto_height_m), m; 0 = everywhere in approach"),
+        Field("veto_reopen", bool, False, True, "the veto may open a gripper whose last command was closed"),
+    )),
+    ("the place phase's correction", (
+        Field("place_rule", str, "release_veto", "decelerate", "decelerate (eq. 5) | redirect | release_veto"),
+    )),
+)
+LATE_FIELDS: tuple = (  # after the corrections' own
+    ("Branch B (eq. 4-6)", (
+        Field("el_mode", str, "soft", "soft", "soft | gated | off"),
+        Field("weighting", str, "joint_diag", "joint_diag", "joint_diag | task_space"),
+        Field("eps_nm", float, 0.05, 0.05, "the gate's threshold, N m"),
+        Field("r0_nm", float, 1.5, 1.5, "the residual at which the gated weight saturates, N m"),
+        Field("dls_damping", float, 1e-2, 1e-2, "the damped least-squares pseudo-inverse's damping, m"),
+    )),
+    ("the adaptive low-pass (core/lowpass.py)", (
+        Field("lowpass", str, "off", "off", "off | adaptive"),
+        Field("lowpass_phases", str, "approach,grasp,transport,place", "approach,grasp,transport,place",
+              "the phases where it acts (comma-separated)"),
+        Field("lowpass_space", str, "action", "action", "action | target: the increments, or the position they command"),
+        Field("lowpass_speed_hi", float, 0.0, 0.0, "it fades out as the policy's speed reaches this, action units per "
+              "step; 0 = off"),
+        Field("lowpass_alpha_max", float, 0.6, 0.6, "its strongest smoothing factor, in [0, 1)"),
+        Field("lowpass_rough_lo", float, 0.05, 0.05, "the roughness where it starts acting, action units"),
+        Field("lowpass_rough_hi", float, 0.2, 0.2, "the roughness where it reaches alpha_max, action units"),
+        Field("lowpass_rough", str, "ema", "ema", "ema | median: the roughness estimate"),
+        Field("lowpass_lag", str, "trail", "trail", "trail | compensate: a filtered target's lag behind a steady move"),
+    )),
+)
+GROUPS: tuple = (*CORE_FIELDS, *((f"{c.name} (core/corrections/{c.name}.py)", c.fields) for c in CORRECTIONS
+                                 if c.fields), *LATE_FIELDS)
+FIELDS: tuple = tuple(f for _, fs in GROUPS for f in fs)
+# What the paper's main text sets where the shipped default departs from it.
+PAPER: dict = {f.name: f.paper for f in FIELDS if f.paper != f.default}
 
-    What runs, on which action vector
-        mode: baseline (identity) | temporal (uniform EMA) | phys (Branch A) | phys_el (A + B).
-        layout: a name in LAYOUTS or an ActionLayout.
-    The blender (eq. 2)
-        cap: the authority c of the corrected action.
-        phase_caps: per-phase authority (approach, grasp, transport, place), replacing cap; () = cap.
-        chunk_phase_caps: phase_caps for a policy that executes open-loop chunks (for_policy); () = phase_caps.
-        chunk: all | first: which steps of a (B, T, A) chunk are corrected.
-        gripper_rule: blend (the gripper goes through the blender) | veto (the approach veto opens it in full).
-    The phase machine (eq. 3)
-        delta_grasp_m: the grasp envelope, m.  h_lift_m: lift that counts as lifted, m.
-        phase_ref: eef | object: what the place distance measures from once the object is lifted.
-    Branch A, the paper's corrections (App. A)
-        beta, grasp_offset_m (m): grasp guidance.  lift_bias_m (m), alpha_transport: transport smoothing.
-        d_thresh_m (m): place deceleration (eq. 5).  place_rule: decelerate | redirect | release_veto.
-        redirect_gain: gain of the place redirection (action units per action unit of error).
-    The gripper veto: veto_height_m (m), veto_reach_m (m), veto_reopen.
-    The release veto: redirect_tol_m (m), hold_steps (control steps), release_carry.
-    The release assist (corrections/release_assist.py): release_assist_m (m; 0 = off), assist_steps, assist_still.
-    The lift assist (corrections/lift_assist.py): lift_assist_u (action units; 0 = off), lift_assist_at_rest.
-    The rim guide (corrections/rim_guide.py): rim_guide_m (m; 0 = off), rim_guide_into_grasp.
-    Branch B (eq. 4-6)
-        el_mode: soft | gated | off.  weighting: joint_diag | task_space.
-        eps_nm, r0_nm: the gate's threshold and saturation, N m.  dls_damping: the pseudo-inverse's damping, m.
-    The temporal mode: alpha_temporal (the EMA's factor).
-    The adaptive low-pass (core/lowpass.py): lowpass (off | adaptive), lowpass_phases, lowpass_space
-        (action | target), lowpass_speed_hi (action units per step; 0 = off), lowpass_alpha_max,
-        lowpass_rough_lo / _hi (action units), lowpass_rough (ema | median), lowpass_lag (trail | compensate).
-    """
 
-    # --- what runs, on which action vector
-    mode: str = "phys"
-    layout: str | ActionLayout = "libero_osc_pose"
-    # --- the blender (eq. 2)
-    cap: float = 0.05
-    phase_caps: tuple[float, ...] = (1.0, 1.0, 0.0, 1.0)
-    chunk_phase_caps: tuple[float, ...] = ()
-    chunk: str = "all"
-    gripper_rule: str = "veto"
-    # --- the phase machine (eq. 3)
-    delta_grasp_m: float = 0.06
-    h_lift_m: float = 0.02
-    phase_ref: str = "object"
-    # --- Branch A: the paper's corrections (App. A)
-    beta: float = 0.0
-    grasp_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    lift_bias_m: float = 0.02
-    alpha_transport: float = 0.92
-    d_thresh_m: float = 0.08
-    place_rule: str = "release_veto"
-    redirect_gain: float = 0.5
-    # --- the gripper veto
-    veto_height_m: float = 0.06
-    veto_reach_m: float = 0.10
-    veto_reopen: bool = False
-    # --- the release veto
-    redirect_tol_m: float = 0.02
-    hold_steps: int = 40
-    release_carry: bool = True
-    # --- the release assist
-    release_assist_m: float = 0.04
-    assist_steps: int = 10
-    assist_still: str = "hand"
-    # --- the lift assist
-    lift_assist_u: float = 0.5
-    lift_assist_at_rest: bool = True
-    # --- the rim guide
-    rim_guide_m: float = 0.047
-    rim_guide_into_grasp: bool = False
-    # --- Branch B (eq. 4-6)
-    el_mode: str = "soft"
-    weighting: str = "joint_diag"
-    eps_nm: float = 0.05
-    r0_nm: float = 1.5
-    dls_damping: float = 1e-2
-    # --- the temporal mode
-    alpha_temporal: float = 0.85
-    # --- the adaptive low-pass
-    lowpass: str = "off"
-    lowpass_phases: str = "approach,grasp,transport,place"
-    lowpass_space: str = "action"
-    lowpass_speed_hi: float = 0.0
-    lowpass_alpha_max: float = 0.6
-    lowpass_rough_lo: float = 0.05
-    lowpass_rough_hi: float = 0.2
-    lowpass_rough: str = "ema"
-    lowpass_lag: str = "trail"
+class _Methods:
+    """What PhysVLAConfig does with its fields (the fields: FIELDS, assembled below)."""
 
     @classmethod
     def paper(cls, **changes) -> PhysVLAConfig:
@@ -214,6 +191,8 @@ class PhysVLAConfig:
         self.validate()
 
     def validate(self) -> None:
+        """ValueError (one line, saying what to set) for a configuration the corrector cannot run; the
+        corrections check their own fields (`Correction.check`)."""
         for name, value, allowed in (
             ("mode", self.mode, MODES),
             ("el_mode", self.el_mode, EL_MODES),
@@ -222,7 +201,6 @@ class PhysVLAConfig:
             ("chunk", self.chunk, CHUNK_MODES),
             ("place_rule", self.place_rule, PLACE_RULES),
             ("phase_ref", self.phase_ref, PHASE_REFS),
-            ("assist_still", self.assist_still, ASSIST_STILL),
             ("lowpass", self.lowpass, LOWPASS_RULES),
             ("lowpass_space", self.lowpass_space, LOWPASS_SPACES),
             ("lowpass_rough", self.lowpass_rough, LOWPASS_ROUGH),
@@ -235,17 +213,13 @@ class PhysVLAConfig:
                 f"physvla: unknown action layout {self.layout!r}; choose one of {', '.join(LAYOUTS)} "
                 "or pass an ActionLayout"
             )
-        for name in ("cap", "beta", "alpha_transport", "alpha_temporal"):
-            v = getattr(self, name)
-            if not 0.0 <= v <= 1.0:
-                raise ValueError(f"physvla: {name} must lie in [0, 1], got {v}")
-        for name in ("delta_grasp_m", "h_lift_m", "d_thresh_m", "dls_damping"):
+        if not 0.0 <= self.cap <= 1.0:
+            raise ValueError(f"physvla: cap must lie in [0, 1], got {self.cap}")
+        for name in ("delta_grasp_m", "h_lift_m", "dls_damping"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"physvla: {name} must be > 0, got {getattr(self, name)}")
         if not 0 <= self.eps_nm < self.r0_nm:
             raise ValueError(f"physvla: need 0 <= eps_nm < r0_nm, got {self.eps_nm}, {self.r0_nm}")
-        if len(self.grasp_offset_m) != 3:
-            raise ValueError(f"physvla: grasp_offset_m needs 3 values, got {self.grasp_offset_m}")
         for name in ("phase_caps", "chunk_phase_caps"):
             caps = getattr(self, name)
             if len(caps) not in (0, 4) or not all(0.0 <= c <= 1.0 for c in caps):
@@ -261,42 +235,12 @@ class PhysVLAConfig:
         if not 0.0 <= self.lowpass_rough_lo < self.lowpass_rough_hi:
             raise ValueError("physvla: need 0 <= lowpass_rough_lo < lowpass_rough_hi, got "
                              f"{self.lowpass_rough_lo}, {self.lowpass_rough_hi}")
-        if not (self.veto_height_m >= 0 and self.veto_reach_m >= 0 and self.redirect_gain > 0
-                and self.redirect_tol_m >= 0 and self.hold_steps >= 0 and self.release_assist_m >= 0
-                and self.assist_steps >= 1):
-            raise ValueError("physvla: need veto_height_m >= 0, veto_reach_m >= 0, redirect_gain > 0, "
-                             "redirect_tol_m >= 0, hold_steps >= 0, release_assist_m >= 0 and assist_steps >= 1, got "
-                             f"{self.veto_height_m}, {self.veto_reach_m}, {self.redirect_gain}, {self.redirect_tol_m}, "
-                             f"{self.hold_steps}, {self.release_assist_m}, {self.assist_steps}")
-        if not 0.0 <= self.lift_assist_u <= 1.0:
-            raise ValueError(f"physvla: lift_assist_u must lie in [0, 1] action units, got {self.lift_assist_u}")
-        if self.lift_assist_u > 0.0 and self.action_layout.absolute:
-            raise ValueError("physvla: lift_assist_u raises a delta layout's z command; this layout's positions are "
-                             "absolute targets: leave lift_assist_u at 0")
-        if self.lift_assist_u > 0.0 and self.caps[1] == 0.0:
-            raise ValueError("physvla: lift_assist_u acts with the grasp phase's authority, which is 0 here: set "
-                             "phase_caps with a grasp entry above 0 (e.g. phase_caps=(0, 1, 0, 1) with beta=0: the "
-                             "paper's grasp guidance then leaves the action as it is)")
-        if not 0.0 <= self.rim_guide_m < self.delta_grasp_m:
-            raise ValueError(f"physvla: rim_guide_m must lie in [0, delta_grasp_m = {self.delta_grasp_m}) m (the "
-                             f"approach phase begins at delta_grasp_m), got {self.rim_guide_m}")
-        if self.rim_guide_m > 0.0 and self.action_layout.absolute:
-            raise ValueError("physvla: rim_guide_m commands a delta layout's x, y; this layout's positions are "
-                             "absolute targets: leave rim_guide_m at 0")
-        if self.rim_guide_into_grasp and self.rim_guide_m == 0.0:
-            raise ValueError("physvla: rim_guide_into_grasp goes on with the rim guide's pull; set rim_guide_m "
-                             "(e.g. 0.047) or leave rim_guide_into_grasp off")
-        chunk = tuple(self.chunk_phase_caps)  # () = the phase caps for every policy
-        for caps, name in ((self.caps, "phase_caps"), (chunk, "chunk_phase_caps")):
-            if self.rim_guide_m > 0.0 and caps and caps[0] == 0.0:
-                raise ValueError(f"physvla: rim_guide_m acts with the approach phase's authority, which is 0 in {name}: "
-                                 f"set {name} with an approach entry above 0 (e.g. (1, 1, 0, 1)), or rim_guide_m=0")
-            if self.rim_guide_into_grasp and caps and caps[1] == 0.0:
-                raise ValueError(f"physvla: rim_guide_into_grasp acts with the grasp phase's authority, which is 0 in "
-                                 f"{name}: set {name} with a grasp entry above 0 (e.g. (1, 1, 0, 1)), or leave it off")
-        if self.lift_assist_u > 0.0 and chunk and chunk[1] == 0.0:  # (phase_caps: checked above)
-            raise ValueError("physvla: lift_assist_u acts with the grasp phase's authority, which is 0 in "
-                             "chunk_phase_caps: set its grasp entry above 0, or lift_assist_u=0")
+        if not (self.veto_height_m >= 0 and self.veto_reach_m >= 0):
+            raise ValueError(f"physvla: need veto_height_m >= 0 and veto_reach_m >= 0, got {self.veto_height_m}, "
+                             f"{self.veto_reach_m}")
+        for c in CORRECTIONS:
+            if c.check is not None:
+                c.check(self)
 
     @property
     def caps(self) -> tuple[float, float, float, float]:
@@ -352,12 +296,22 @@ class PhysVLAConfig:
         return cls(**d)
 
 
+def _doc() -> str:
+    lines = ["The corrector's configuration. `PhysVLAConfig()` is the shipped default, what",
+             "`--policy.postprocess=physvla` applies; `PhysVLAConfig.paper(**changes)` is the paper's main text",
+             "with every option beyond it off; `preset(name, **changes)` any named preset (PRESETS). Every field",
+             "is a `--physvla.<field>` flag; docs/method.md gives its equation, unit and evidence. The fields, by",
+             "concept (a correction's own fields are declared in its file, core/corrections/):", ""]
+    for heading, fields in GROUPS:
+        lines.append(heading.capitalize())
+        lines += [f"    {f.name}: {f.doc}." for f in fields]
+    return "\n".join(lines)
 
-# What the paper's main text sets where the shipped default (the field defaults above) departs from it.
-PAPER: dict = {"mode": "phys_el", "phase_caps": (), "gripper_rule": "blend", "phase_ref": "eef", "beta": 0.5,
-               "place_rule": "decelerate", "veto_height_m": 0.0, "veto_reach_m": 0.0, "veto_reopen": True,
-               "redirect_tol_m": 0.0, "release_carry": False, "release_assist_m": 0.0, "assist_still": "action",
-               "lift_assist_u": 0.0, "lift_assist_at_rest": False, "rim_guide_m": 0.0}
+
+PhysVLAConfig = dataclasses.make_dataclass(
+    "PhysVLAConfig", [(f.name, f.type, dataclasses.field(default=f.default)) for f in FIELDS], bases=(_Methods,),
+    namespace={"__module__": __name__, "__doc__": _doc()})
+
 
 # Named presets. `default` is what `--policy.postprocess=physvla` applies with no further flag and what
 # PhysVLAConfig() gives, chosen by measurement (docs/method.md "Presets", docs/decisions/); the paper's two

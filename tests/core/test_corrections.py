@@ -528,3 +528,60 @@ def test_branch_a_runs_the_rim_guide_in_approach_only_leaving_the_gripper_to_the
     for _ in range(RIM_SETTLE_STEPS + 2):
         branch_a_row(a, out, APPROACH, idx, geo, off, mem, True)
     assert out[6] == LIBERO_OSC_POSE.gripper_open and mem[RIM_AT] == 0  # the paper's veto; nothing tracked
+
+
+_NEW_CORRECTION = '''"""A test's correction: in the grasp phase, shift x by demo_shift_u action units."""
+
+from numba import njit
+
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import Correction, Field
+from lerobot_physvla.core.phase import GRASP
+
+PARAMS = ("DEMO_SHIFT_U",)
+MEMORY = (("DEMO_CALLS", 1),)
+(DEMO_SHIFT_U,) = slots.params(__file__)
+(DEMO_CALLS,) = slots.memory(__file__)
+
+
+@njit(cache=True, error_model="numpy")
+def zz_demo(a_raw, a_phys, idx, geo, p, mem, commit):
+    a_phys[idx[0]] += p[DEMO_SHIFT_U]
+    if commit:
+        mem[DEMO_CALLS] += 1.0
+
+
+CORRECTION = Correction("zz_demo", GRASP, 9, zz_demo, values={"DEMO_SHIFT_U": lambda c, lay: c.demo_shift_u},
+                        on=lambda c: c.demo_shift_u != 0.0,
+                        fields=(Field("demo_shift_u", float, 0.0, 0.0, "a shift of x in the grasp phase, action units"),))
+'''
+
+_NEW_PROBE = """
+import numpy as np, warnings
+warnings.simplefilter("ignore")
+from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.core.config import PhysVLAConfig, preset
+from lerobot_physvla.flags import build_config, split_argv
+from lerobot_physvla.core.state import PhysState
+st = PhysState.empty(1, 7); st.valid[:] = 1; st.dt[:] = 0.05
+st.eef_pos[:] = (0, 0, 1.0); st.obj_pos[:] = (0.02, 0, 0.9); st.obj_rest_z[:] = 0.9; st.target_pos[:] = (0.5, 0, 0.9)
+_, flags, _ = split_argv(["--physvla.preset=paper", "--physvla.mode=phys", "--physvla.cap=1.0", "--physvla.demo_shift_u=0.25"])
+on, off = build_config(flags), preset("paper", mode="phys", cap=1.0)
+a = np.zeros((1, 7))
+print(repr(float(Corrector(on, 1)(a, st)[0, 0] - Corrector(off, 1)(a, st)[0, 0])), PhysVLAConfig().demo_shift_u)
+"""
+
+
+@pytest.mark.slow
+def test_a_new_correction_is_its_file(tmp_path):
+    """A file in core/corrections declaring its slots, its fields and a Correction is all it takes: its field
+    is a PhysVLAConfig field and a --physvla flag, its parameter reaches its kernel, and the assembled
+    dispatch calls it in its phase (grasp here), after the paper's grasp guidance."""
+    shutil.copytree(PKG / "lerobot_physvla", tmp_path / "lerobot_physvla",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    (tmp_path / "lerobot_physvla/core/corrections/zz_demo.py").write_text(_NEW_CORRECTION)
+    env = {"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    r = subprocess.run([sys.executable, "-c", _NEW_PROBE], env=env, capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-3000:]
+    shift, default = r.stdout.strip().splitlines()[-1].split()
+    assert float(shift) == pytest.approx(0.25) and float(default) == 0.0

@@ -44,6 +44,24 @@ METRES_PER_UNIT, GRIPPER_OPEN, LOW, HIGH, PHASE_REF_OBJECT = (P_SLOTS[n] for n i
 
 
 @dataclass(frozen=True)
+class Field:
+    """A configuration field a correction owns (a field of PhysVLAConfig and a `--physvla.<name>` flag).
+
+    Attributes:
+        name, type: the field.
+        default: its value in the shipped default (PhysVLAConfig()).
+        paper: its value in the paper's main text (PhysVLAConfig.paper()): off for a correction beyond it.
+        doc: what it sets, with its unit.
+    """
+
+    name: str
+    type: object
+    default: object
+    paper: object
+    doc: str
+
+
+@dataclass(frozen=True)
 class Correction:
     """A Branch A correction as its file declares it.
 
@@ -60,6 +78,9 @@ class Correction:
         commit: a numba function (phase, geo, p, mem) run on every committed step while it is on, in
             every phase (its memory's upkeep: counters that start over outside its phase, a track of
             the hand), or None.
+        fields: the configuration fields it owns (PhysVLAConfig is assembled from them).
+        check: f(cfg) -> None, raising ValueError (one line, saying what to set) where the
+            configuration asks it for something it cannot do; or None.
     """
 
     name: str
@@ -70,6 +91,16 @@ class Correction:
     on: Callable = lambda cfg: True
     replaces: tuple[str, ...] = ()
     commit: Callable | None = None
+    fields: tuple[Field, ...] = ()
+    check: Callable | None = None
+
+
+def unit_interval(cfg, *names: str) -> None:
+    """ValueError unless each named field lies in [0, 1]."""
+    for name in names:
+        v = getattr(cfg, name)
+        if not 0.0 <= v <= 1.0:
+            raise ValueError(f"physvla: {name} must lie in [0, 1], got {v}")
 
 
 def __getattr__(name: str) -> int:

@@ -8,7 +8,7 @@ p* and p_eef in metres, scale = metres per action unit, so the first term is in 
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, METRES_PER_UNIT, OBJ, Correction
+from lerobot_physvla.core.corrections.base import EEF, METRES_PER_UNIT, OBJ, Correction, Field, unit_interval
 from lerobot_physvla.core.phase import GRASP
 
 PARAMS = ("BETA", "OFFSET_X_M", "OFFSET_Y_M", "OFFSET_Z_M")  # the blend weight; the grasp point's offset, m
@@ -25,4 +25,13 @@ def grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit):
 
 CORRECTION = Correction("grasp_guidance", GRASP, 0, grasp_guidance, values={
     "BETA": lambda c, lay: c.beta, "OFFSET_X_M": lambda c, lay: c.grasp_offset_m[0],
-    "OFFSET_Y_M": lambda c, lay: c.grasp_offset_m[1], "OFFSET_Z_M": lambda c, lay: c.grasp_offset_m[2]})
+    "OFFSET_Y_M": lambda c, lay: c.grasp_offset_m[1], "OFFSET_Z_M": lambda c, lay: c.grasp_offset_m[2]},
+    fields=(Field("beta", float, 0.0, 0.5, "the blend's weight toward the grasp point (0: the policy's action)"),
+            Field("grasp_offset_m", tuple[float, float, float], (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
+                  "the grasp point p* = the object's position + this offset, m (world frame)")),
+    check=lambda c: (unit_interval(c, "beta"), _three(c.grasp_offset_m)))
+
+
+def _three(offset) -> None:
+    if len(offset) != 3:
+        raise ValueError(f"physvla: grasp_offset_m needs 3 values, got {offset}")

@@ -28,7 +28,7 @@ rest, and the assist raised it for 22 steps: candidate 12's run of that episode 
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, FINGERS, GRIPPER, GRIPPER_OPEN, LIFT, Z, Correction
+from lerobot_physvla.core.corrections.base import EEF, FINGERS, GRIPPER, GRIPPER_OPEN, LIFT, Z, Correction, Field
 from lerobot_physvla.core.corrections.release_assist import STILL_M
 from lerobot_physvla.core.phase import GRASP
 
@@ -90,4 +90,24 @@ def lift_assist_commit(phase, geo, p, mem):
 CORRECTION = Correction("lift_assist", GRASP, 1, lift_assist, values={
     "LIFT_ASSIST_U": lambda c, lay: c.lift_assist_u, "LIFT_AT_REST": lambda c, lay: c.lift_assist_at_rest,
     "LIFT_ASSIST_STEPS": lambda c, lay: c.assist_steps},
-    on=lambda c: c.lift_assist_u > 0.0, commit=lift_assist_commit)
+    on=lambda c: c.lift_assist_u > 0.0, commit=lift_assist_commit,
+    fields=(Field("lift_assist_u", float, 0.5, 0.0, "the z command a still, closed, unlifted hold is raised to, "
+                  "action units; 0 = off"),
+            Field("lift_assist_at_rest", bool, True, False, "lift only an object at its resting height or above")),
+    check=lambda c: _check(c))
+
+
+def _check(c) -> None:
+    if not 0.0 <= c.lift_assist_u <= 1.0:
+        raise ValueError(f"physvla: lift_assist_u must lie in [0, 1] action units, got {c.lift_assist_u}")
+    if c.lift_assist_u > 0.0 and c.action_layout.absolute:
+        raise ValueError("physvla: lift_assist_u raises a delta layout's z command; this layout's positions are "
+                         "absolute targets: leave lift_assist_u at 0")
+    if c.lift_assist_u > 0.0 and c.caps[1] == 0.0:
+        raise ValueError("physvla: lift_assist_u acts with the grasp phase's authority, which is 0 here: set "
+                         "phase_caps with a grasp entry above 0 (e.g. phase_caps=(0, 1, 0, 1) with beta=0: the "
+                         "paper's grasp guidance then leaves the action as it is)")
+    chunk = tuple(c.chunk_phase_caps)
+    if c.lift_assist_u > 0.0 and chunk and chunk[1] == 0.0:
+        raise ValueError("physvla: lift_assist_u acts with the grasp phase's authority, which is 0 in "
+                         "chunk_phase_caps: set its grasp entry above 0, or lift_assist_u=0")

@@ -6,7 +6,7 @@
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import D_TGT_XY, Correction
+from lerobot_physvla.core.corrections.base import D_TGT_XY, Correction, Field
 from lerobot_physvla.core.phase import PLACE
 
 PARAMS = ("D_THRESH_M",)  # the deceleration's scale, m
@@ -22,4 +22,11 @@ def place_deceleration(a_raw, a_phys, idx, geo, p, mem, commit):
 
 
 CORRECTION = Correction("place_deceleration", PLACE, 0, place_deceleration,
-                        values={"D_THRESH_M": lambda c, lay: c.d_thresh_m}, on=lambda c: c.place_rule == "decelerate")
+                        values={"D_THRESH_M": lambda c, lay: c.d_thresh_m}, on=lambda c: c.place_rule == "decelerate",
+                        fields=(Field("d_thresh_m", float, 0.08, 0.08, "the deceleration's scale (eq. 5), m"),),
+                        check=lambda c: _positive(c.d_thresh_m))
+
+
+def _positive(d) -> None:
+    if not d > 0:
+        raise ValueError(f"physvla: d_thresh_m must be > 0, got {d}")

@@ -16,7 +16,7 @@ gripper stay the policy's, so it still decides when to lower and release.
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import METRES_PER_UNIT, OBJ, TGT, Correction
+from lerobot_physvla.core.corrections.base import METRES_PER_UNIT, OBJ, TGT, Correction, Field
 from lerobot_physvla.core.phase import PLACE
 
 PARAMS = ("REDIRECT_GAIN", "REDIRECT_TOL_M")  # the steering gain (action units per unit of error); its tolerance, m
@@ -45,4 +45,14 @@ def place_redirect(a_raw, a_phys, idx, geo, p, mem, commit):
 
 CORRECTION = Correction("place_redirect", PLACE, 0, place_redirect, values={
     "REDIRECT_GAIN": lambda c, lay: c.redirect_gain, "REDIRECT_TOL_M": lambda c, lay: c.redirect_tol_m},
-    on=lambda c: c.place_rule == "redirect")
+    on=lambda c: c.place_rule == "redirect",
+    fields=(Field("redirect_gain", float, 0.5, 0.5, "the steering gain, action units per action unit of error"),
+            Field("redirect_tol_m", float, 0.02, 0.0, "the held object's centre within this of the target's: "
+                  "left alone (the release veto: a release beyond it is held back), m")),
+    check=lambda c: _check(c))
+
+
+def _check(c) -> None:
+    if not (c.redirect_gain > 0 and c.redirect_tol_m >= 0):
+        raise ValueError(f"physvla: need redirect_gain > 0 and redirect_tol_m >= 0, got {c.redirect_gain}, "
+                         f"{c.redirect_tol_m}")

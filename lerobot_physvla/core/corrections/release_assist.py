@@ -28,7 +28,7 @@ still" means; the command is a proxy for it.
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, LIFT, OBJ, TGT, Correction
+from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, LIFT, OBJ, TGT, Correction, Field
 from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M
 from lerobot_physvla.core.phase import PLACE
 
@@ -88,4 +88,21 @@ def release_assist_commit(phase, geo, p, mem):
 CORRECTION = Correction("release_assist", PLACE, 1, release_assist, values={
     "ASSIST_M": lambda c, lay: c.release_assist_m, "ASSIST_STEPS": lambda c, lay: c.assist_steps,
     "ASSIST_STILL_HAND": lambda c, lay: c.assist_still == "hand"},
-    on=lambda c: c.release_assist_m > 0.0 and c.place_rule == "release_veto", commit=release_assist_commit)
+    on=lambda c: c.release_assist_m > 0.0 and c.place_rule == "release_veto", commit=release_assist_commit,
+    fields=(Field("release_assist_m", float, 0.04, 0.0, "open for a hold still over the target at most this above "
+                  "it, m; 0 = off"),
+            Field("assist_steps", int, 10, 10, "control steps a hold lasts before the release (and the lift) assist "
+                  "acts"),
+            Field("assist_still", str, "hand", "action", "what makes a hold still: action (the command) | hand (the "
+                  "end effector within 3 mm)")),
+    check=lambda c: _check(c))
+
+ASSIST_STILL = ("action", "hand")
+
+
+def _check(c) -> None:
+    if c.assist_still not in ASSIST_STILL:
+        raise ValueError(f"physvla: unknown assist_still {c.assist_still!r}; choose one of {', '.join(ASSIST_STILL)}")
+    if not (c.release_assist_m >= 0 and c.assist_steps >= 1):
+        raise ValueError(f"physvla: need release_assist_m >= 0 and assist_steps >= 1, got {c.release_assist_m}, "
+                         f"{c.assist_steps}")

@@ -24,7 +24,7 @@ steers to half the tolerance before it lets the policy's open through (not to it
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, OBJ, Z, Correction
+from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, OBJ, Z, Correction, Field
 from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M, steer
 from lerobot_physvla.core.phase import GRASP, PLACE
 
@@ -79,4 +79,13 @@ def carried_phase(ph, g, mem, commit):
 
 CORRECTION = Correction("release_veto", PLACE, 0, release_veto, values={
     "HOLD_STEPS": lambda c, lay: c.hold_steps, "RELEASE_CARRY": lambda c, lay: c.release_carry},
-    on=lambda c: c.place_rule == "release_veto", commit=release_veto_commit)
+    on=lambda c: c.place_rule == "release_veto", commit=release_veto_commit,
+    fields=(Field("hold_steps", int, 40, 40, "the longest a release is held back in a row, control steps"),
+            Field("release_carry", bool, True, False, "the phase stays place while the carried object is at the "
+                  "hand, the hand does not rise during a hold, a hold steers to half the tolerance")),
+    check=lambda c: _check(c))
+
+
+def _check(c) -> None:
+    if not c.hold_steps >= 0:
+        raise ValueError(f"physvla: hold_steps must be >= 0, got {c.hold_steps}")

@@ -37,7 +37,7 @@ on init states 20-24; not shipped, off in every preset.
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, METRES_PER_UNIT, OBJ, X, Y, Correction
+from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, METRES_PER_UNIT, OBJ, X, Y, Correction, Field
 from lerobot_physvla.core.phase import APPROACH, GRASP
 
 PARAMS = ("RIM_GUIDE_M",)  # the distance from the object's origin the hand is pulled to, m
@@ -115,4 +115,20 @@ def rim_guide_commit(phase, geo, p, mem):
 
 
 CORRECTION = Correction("rim_guide", APPROACH, 0, rim_guide, values={"RIM_GUIDE_M": lambda c, lay: c.rim_guide_m},
-                        on=lambda c: c.rim_guide_m > 0.0, replaces=("approach_veto",), commit=rim_guide_commit)
+                        on=lambda c: c.rim_guide_m > 0.0, replaces=("approach_veto",), commit=rim_guide_commit,
+                        fields=(Field("rim_guide_m", float, 0.047, 0.0, "a hand settled beside the object is pulled to "
+                                      "this distance from its origin, m; 0 = off"),),
+                        check=lambda c: _check(c))
+
+
+def _check(c) -> None:
+    if not 0.0 <= c.rim_guide_m < c.delta_grasp_m:
+        raise ValueError(f"physvla: rim_guide_m must lie in [0, delta_grasp_m = {c.delta_grasp_m}) m (the "
+                         f"approach phase begins at delta_grasp_m), got {c.rim_guide_m}")
+    if c.rim_guide_m > 0.0 and c.action_layout.absolute:
+        raise ValueError("physvla: rim_guide_m commands a delta layout's x, y; this layout's positions are "
+                         "absolute targets: leave rim_guide_m at 0")
+    for caps, name in ((c.caps, "phase_caps"), (tuple(c.chunk_phase_caps), "chunk_phase_caps")):
+        if c.rim_guide_m > 0.0 and caps and caps[0] == 0.0:
+            raise ValueError(f"physvla: rim_guide_m acts with the approach phase's authority, which is 0 in {name}: "
+                             f"set {name} with an approach entry above 0 (e.g. (1, 1, 0, 1)), or rim_guide_m=0")

@@ -4,7 +4,7 @@ smoothing baseline, not a Branch A correction; it shares their signature and mem
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import Correction
+from lerobot_physvla.core.corrections.base import Correction, Field, unit_interval
 
 PARAMS = ("ALPHA_TEMPORAL",)  # the EMA's factor
 MEMORY = (("TEMPORAL_EMA", 3), ("TEMPORAL_ACTIVE", 1))  # the EMA (x, y, z, action units); 1.0: it holds a value
@@ -29,4 +29,6 @@ def temporal_ema(a_raw, a_phys, idx, geo, p, mem, commit):
 
 # the temporal mode's EMA: in every phase of that mode, instead of Branch A (core/branch_a.py temporal_row)
 CORRECTION = Correction("temporal_ema", None, 0, temporal_ema, values={"ALPHA_TEMPORAL": lambda c, lay: c.alpha_temporal},
-                        on=lambda c: c.mode == "temporal")
+                        on=lambda c: c.mode == "temporal",
+                        fields=(Field("alpha_temporal", float, 0.85, 0.85, "the temporal mode's EMA factor"),),
+                        check=lambda c: unit_interval(c, "alpha_temporal"))

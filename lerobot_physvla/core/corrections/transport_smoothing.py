@@ -8,7 +8,7 @@ The EMA starts from the current (biased) action on the first transport step.
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import Correction
+from lerobot_physvla.core.corrections.base import Correction, Field, unit_interval
 from lerobot_physvla.core.phase import TRANSPORT
 
 PARAMS = ("ALPHA_TRANSPORT", "LIFT_BIAS_U")  # the EMA's factor; the lift bias, action units
@@ -39,4 +39,7 @@ def transport_commit(phase, geo, p, mem):
 
 CORRECTION = Correction("transport_smoothing", TRANSPORT, 0, transport_smoothing, values={
     "ALPHA_TRANSPORT": lambda c, lay: c.alpha_transport, "LIFT_BIAS_U": lambda c, lay: c.lift_bias_m / lay.metres_per_unit},
-    commit=transport_commit)
+    commit=transport_commit,
+    fields=(Field("lift_bias_m", float, 0.02, 0.02, "the vertical lift bias added to the z command, m"),
+            Field("alpha_transport", float, 0.92, 0.92, "the EMA's factor on the position channels")),
+    check=lambda c: unit_interval(c, "alpha_transport"))
