@@ -92,23 +92,26 @@ def _backbone(unit: Unit, scene):
     return _POLICIES[unit.policy]
 
 
-def run_episode(scene, corrector, backbone, seed: int) -> dict:
+def run_episode(scene, corrector, backbone, seed: int, perception=None) -> dict:
     """One episode; returns its record (success, reward, metrics, firing rates, timings).
 
     Success: at the first successful step for scenes that stop on success (LIBERO, lift_plate),
-    else the scene's check at the last step (Lift, Fetch)."""
+    else the scene's check at the last step (Lift, Fetch). perception: a sources.perception.Perception
+    between the scene's state and the corrector (the backbone reads the scene's own state)."""
     from lerobot_physvla import metrics
 
     scene.reset(seed)
     corrector.reset()
     backbone.reset(seed)
+    if perception is not None:
+        perception.reset(seed=seed)
     eef, d_obj, phases, t_a, t_b, t_tot, vetoes, el = [], [], [], [], [], [], 0, 0
     grip = corrector.layout.gripper
     success, steps, reward, first_success = False, 0, 0.0, None
     for steps in range(1, scene.horizon + 1):
         st = scene.read()
         raw = np.asarray(backbone.act(scene, st), dtype=np.float64)[None]
-        out = corrector(raw, st)
+        out = corrector(raw, st) if perception is None else corrector.correct_packed(raw, perception.apply(st.pack()))
         d = corrector.last
         success, r = scene.step(out[0])
         reward += r
@@ -149,14 +152,19 @@ def compute_unit(unit: Unit) -> dict:
         from so101_robot import compute_unit as so101_unit
 
         return so101_unit(unit)
+    from lerobot_physvla.sources.perception import Perception, PerceptionConfig
+
     scene = _scene(unit.scene_name)
     backbone = _backbone(unit, scene)
+    config = dict(unit.config)
+    faults = PerceptionConfig.from_dict(config.pop("perception", {}))
+    perception = None if faults.exact else Perception(faults)
     # the configuration for this policy: chunk_phase_caps apply to policies that execute chunks
-    corrector = Corrector(PhysVLAConfig.from_dict(unit.config).for_policy(getattr(backbone, "actions_per_call", 1)))
+    corrector = Corrector(PhysVLAConfig.from_dict(config).for_policy(getattr(backbone, "actions_per_call", 1)))
     t0 = time.time()
     records = []
     for k in range(unit.episodes):
-        rec = run_episode(scene, corrector, backbone, unit.first_seed + k)
+        rec = run_episode(scene, corrector, backbone, unit.first_seed + k, perception)
         rec.update(backbone=unit.backbone, config=unit.config_name, task_id=unit.task_id, scene=unit.scene)
         records.append(rec)
     payload = {"unit": asdict(unit), "seconds": time.time() - t0, "records": records}

@@ -23,16 +23,31 @@ EPISODES, CONFIGS = "episodes.jsonl.gz", "configs.json"
 KEY = ("backbone", "config", "scene", "task_id", "seed")  # one episode per key
 
 
+# fields added after episodes were first stored: left out of the effective configuration at these values
+# (what every configuration before them did), so older configurations keep their hashes
+NEUTRAL = {"pose_error_m": 0.0, "pose_max_age_steps": 5}
+PERCEPTION = "perception"  # a study configuration's perception faults (sources/perception.py), kept beside it
+
+
 def effective(config: dict) -> dict:
     """The configuration as it acts: a full PhysVLAConfig dict, with the low-pass's parameters reset when the
-    low-pass is off (they cannot change an action then)."""
+    low-pass is off (they cannot change an action then), the NEUTRAL fields left out where neutral, and the
+    perception faults between the scene and the corrector (`perception`) where the study sets any."""
     from lerobot_physvla.core.config import PhysVLAConfig
 
+    config = dict(config)
+    faults = config.pop(PERCEPTION, None)
     c = PhysVLAConfig.from_dict(config)
     if c.lowpass == "off":
         c = c.replace(lowpass_alpha_max=0.0, lowpass_rough_lo=0.0, lowpass_rough_hi=1.0, lowpass_phases="",
                       lowpass_space="action", lowpass_speed_hi=0.0, lowpass_rough="ema", lowpass_lag="trail")
-    return c.to_dict()
+    d = c.to_dict()
+    for k, v in NEUTRAL.items():
+        if d[k] == v:
+            del d[k]
+    if faults:
+        d[PERCEPTION] = dict(sorted(faults.items()))
+    return d
 
 
 def config_hash(config: dict) -> str:

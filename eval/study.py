@@ -17,6 +17,9 @@
     [configs]                          # a preset plus overrides (PhysVLAConfig fields), or plain fields
     baseline = {mode = "baseline"}
     "my rim guide" = {preset = "default", rim_guide_m = 0.05}
+    "bias 2 cm, told" = {preset = "default", pose_error_m = "truth", perception = {bias_m = 0.02}}
+                                       # perception: faults between the scene and the corrector (PoseFaults
+                                       # fields for both poses, or object / target tables); "truth": their bound
 
     [scene_overrides]                  # fields every configuration takes on one scene
     fetch_pick_place = {layout = "fetch_4d", weighting = "task_space"}
@@ -164,15 +167,20 @@ class Study:
                 raise SystemExit(f"study {self.name}: unknown configuration {name!r}; declare it under [configs]")
             from lerobot_physvla.core.config import PhysVLAConfig, preset
 
+            from lerobot_physvla.sources.perception import PerceptionConfig
+
             spec = {k: tuple(v) if isinstance(v, list) else v for k, v in self.config_specs[name].items()}
             spec.update(self.scene_overrides.get(scene, {}))
             base = spec.pop("preset", None)
             try:
+                faults = PerceptionConfig.from_dict(spec.pop("perception", {}))
+                if spec.get("pose_error_m") == "truth":  # told the perception's error bound
+                    spec["pose_error_m"] = faults.error_bound_m
                 cfg = preset(base, **spec) if base else PhysVLAConfig(**spec)
                 cfg.validate()
             except (TypeError, ValueError) as e:
                 raise SystemExit(f"study {self.name}: configuration {name!r}: {e}") from e
-            self._configs[key] = cfg.to_dict()
+            self._configs[key] = cfg.to_dict() | ({} if faults.exact else {"perception": faults.to_dict()})
         return self._configs[key]
 
     def config_hash(self, name: str, scene: str = "libero_spatial") -> str:

@@ -33,11 +33,12 @@ from numba import njit
 
 from lerobot_physvla.core.corrections import CORRECTIONS, slots
 from lerobot_physvla.core.corrections.base import (D_OBJ_XY, D_TGT_XY, EEF, FINGERS, HIGH, LIFT, LOW, N_GEO, OBJ,
-                                                   PHASE_REF_OBJECT, TGT)
+                                                   PHASE_REF_OBJECT, POSE_MAX_AGE, TGT)
 from lerobot_physvla.core.corrections.release_veto import RELEASE_CARRY, carried_phase
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
 from lerobot_physvla.core.phase import PHASE_NAMES, phase_of
-from lerobot_physvla.core.state import INVALID_STATE, NONFINITE_ACTION, NONFINITE_STATE, OK, field_offsets
+from lerobot_physvla.core.state import (INVALID_STATE, MISSING_POSE, NONFINITE_ACTION, NONFINITE_STATE, OK,
+                                       STALE_POSE, field_offsets)
 
 _CORE = Path(__file__).resolve().parent
 # every file compiled into phase_step: this one, the FSM, the state's status codes, the corrections
@@ -110,7 +111,7 @@ def _compile(key: int):
     def phase_step(a_raw, flat, o, idx, p, d_grasp, h_lift, mem, commit, temporal):
         """Validity, geometry, phase and Branch A (or the temporal EMA) for B envs.
 
-        flat: (B, L) packed states; o: offsets of [valid, eef_pos, obj_pos, obj_rest_z, target_pos];
+        flat: (B, L) packed states (pose_age last); o: offsets of [valid, eef_pos, obj_pos, obj_rest_z, target_pos];
         idx, p: see corrections/base.py; mem: (B, N_MEM) per-env memory.
         Returns (a_phys (B, A), phase (B,) int8, geo (B, 4) [d_obj_xy, d_tgt_xy, lift, height of the
         end-effector above the object's origin] m, status (B,) int8).
@@ -124,15 +125,22 @@ def _compile(key: int):
         g = np.empty(N_GEO)
         for i in range(b):
             row = flat[i]
-            finite = True
+            finite, pose_finite = True, True  # every field but the pose; the pose (obj_pos, obj_rest_z, target_pos)
             for k in range(row.shape[0]):
                 if not np.isfinite(row[k]):
-                    finite = False
-                    break
+                    if o[2] <= k < o[2] + 4 or o[4] <= k < o[4] + 3:  # obj_pos and obj_rest_z lie together
+                        pose_finite = False
+                    else:
+                        finite = False
+                        break
             if not row[o[0]] > 0.5:
                 status[i] = INVALID_STATE
             elif not finite:
                 status[i] = NONFINITE_STATE
+            elif not pose_finite:  # the state source has no pose of the object or the target
+                status[i] = MISSING_POSE
+            elif row[row.shape[0] - 1] > p[POSE_MAX_AGE]:  # pose_age, the last field: older than the bound
+                status[i] = STALE_POSE
             else:
                 for k in range(a_dim):
                     if not np.isfinite(a_raw[i, k]):

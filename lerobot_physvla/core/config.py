@@ -149,6 +149,13 @@ CORE_FIELDS: tuple = (
     ("the place phase's correction", (
         Field("place_rule", str, "release_veto", "decelerate", "decelerate (eq. 5) | redirect | release_veto"),
     )),
+    ("the pose the corrections read (the object's and the target's)", (
+        Field("pose_error_m", float, 0.0, 0.0, "how far the poses may be off, a bound on |perceived - true| (e.g. "
+              "bias + 2 x noise sigma), m: each distance a correction decides by answers to it (docs/method.md, "
+              "'Pose error'); 0 = exact, as a simulator's state is"),
+        Field("pose_max_age_steps", int, 5, 5, "the oldest pose a correction acts on (the state's pose_age), control "
+              "steps; an older one passes the action through (stale_pose)"),
+    )),
 )
 LATE_FIELDS: tuple = (  # after the corrections' own
     ("Branch B (eq. 4-6)", (
@@ -235,6 +242,11 @@ class _Methods:
         if not 0.0 <= self.lowpass_rough_lo < self.lowpass_rough_hi:
             raise ValueError("physvla: need 0 <= lowpass_rough_lo < lowpass_rough_hi, got "
                              f"{self.lowpass_rough_lo}, {self.lowpass_rough_hi}")
+        if not 0.0 <= self.pose_error_m < float("inf"):
+            raise ValueError(f"physvla: pose_error_m must be a finite distance >= 0 (m), got {self.pose_error_m}")
+        if not (isinstance(self.pose_max_age_steps, int) and self.pose_max_age_steps >= 0):
+            raise ValueError(f"physvla: pose_max_age_steps must be an int >= 0 (control steps), got "
+                             f"{self.pose_max_age_steps!r}")
         if not (self.veto_height_m >= 0 and self.veto_reach_m >= 0):
             raise ValueError(f"physvla: need veto_height_m >= 0 and veto_reach_m >= 0, got {self.veto_height_m}, "
                              f"{self.veto_reach_m}")

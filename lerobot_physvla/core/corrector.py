@@ -38,6 +38,7 @@ from lerobot_physvla.core.dynamics import ELGate, el_gate
 from lerobot_physvla.core.lowpass import N_LP_MEM, adaptive_lowpass
 from lerobot_physvla.core.state import (
     GUARD_CLIPPED, GUARD_HELD, GUARDS, INVALID_DT, OK, REASONS, SINGULAR, PhysState, field_offsets, n_joints_from_size,
+    upgrade,
 )
 from lerobot_physvla.core.tick import (
     D_DEV, D_GUARD, D_LIFT, D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, FP_B, FP_CAP, FP_CAPS, FP_D_GRASP,
@@ -281,7 +282,9 @@ class Corrector:
                                  "(capacity, B, width) array")
             self._rows_checked = rows
         if type(flat) is np.ndarray and flat.ndim == 2 and flat.shape[1] != self._flat_width:
-            self._set_width(flat.shape[1])
+            flat = upgrade(flat)  # a packed state from before pose_age: age 0
+            if flat.shape[1] != self._flat_width:
+                self._set_width(flat.shape[1])
         if (type(actions) is np.ndarray and actions.ndim == 2 and actions.dtype in _STREAM_DTYPES
                 and actions.flags.carray and type(flat) is np.ndarray and flat.ndim == 2
                 and flat.shape[1] == self._flat_width and flat.dtype == np.float64 and flat.flags.carray
@@ -325,7 +328,9 @@ class Corrector:
             if flat.ndim != 2 or flat.shape[0] != self.batch_size:
                 raise ValueError(f"physvla: packed state of shape {flat.shape}, corrector has {self.batch_size} envs")
             if flat.shape[1] != self._flat_width:
-                self._set_width(flat.shape[1])
+                flat = upgrade(flat)  # a packed state from before pose_age: age 0
+                if flat.shape[1] != self._flat_width:
+                    self._set_width(flat.shape[1])
             if flat.dtype != np.float64 or not flat.flags.c_contiguous:
                 flat = np.ascontiguousarray(flat, dtype=np.float64)
             if stream and flat.shape[1] > EPISODE_STEP:
@@ -373,12 +378,17 @@ class Corrector:
     def _float_params(self) -> np.ndarray:
         cfg, lay = self.cfg, self.layout
         fp = np.zeros(N_FP)
-        fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_CAP] = cfg.delta_grasp_m, cfg.h_lift_m, cfg.cap
+        e = cfg.pose_error_m  # the pose error the distances answer to (docs/method.md, "Pose error"), m
+        # eq. 3's lift threshold + e: an error alone never says "lifted"
+        fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_CAP] = cfg.delta_grasp_m, cfg.h_lift_m + e, cfg.cap
         fp[FP_GRIP_OPEN], fp[FP_LOW], fp[FP_HIGH] = lay.gripper_open, lay.low, lay.high
         if self.branch_b is not None:
             fp[FP_B:FP_CAPS] = self.branch_b.params
         fp[FP_CAPS:FP_VETO] = cfg.caps
-        fp[FP_VETO:FP_LP] = cfg.veto_height_m, cfg.veto_reach_m
+        # the gripper veto holds back a close only where it is sure no grasp can close: its distances + e (a
+        # reach of 0, the whole approach phase, is delta_grasp)
+        fp[FP_VETO:FP_LP] = ((cfg.veto_height_m + e if cfg.veto_height_m > 0 else 0.0),
+                             (cfg.veto_reach_m or (cfg.delta_grasp_m if e > 0 else 0.0)) + e)
         fp[FP_LP:N_FP] = (cfg.lowpass_alpha_max, cfg.lowpass_rough_lo, cfg.lowpass_rough_hi, lay.metres_per_unit,
                           cfg.lowpass_space == "target", cfg.lowpass_speed_hi, cfg.lowpass_rough == "median",
                           cfg.lowpass_lag == "compensate")

@@ -13,9 +13,12 @@ from dataclasses import dataclass
 import numpy as np
 
 # Why the corrector passed an env's action through unchanged (status codes of its kernels).
+# missing_pose: the object's or the target's pose is not finite (the state source has none); stale_pose: the
+# pose is older than the configuration's pose_max_age_steps (the `pose_age` field).
 REASONS = ("ok", "invalid_state", "nonfinite_state", "nonfinite_action", "singular_dynamics", "nonfinite_output",
-           "invalid_dt")
-OK, INVALID_STATE, NONFINITE_STATE, NONFINITE_ACTION, SINGULAR, NONFINITE_OUTPUT, INVALID_DT = range(7)
+           "invalid_dt", "missing_pose", "stale_pose")
+(OK, INVALID_STATE, NONFINITE_STATE, NONFINITE_ACTION, SINGULAR, NONFINITE_OUTPUT, INVALID_DT, MISSING_POSE,
+ STALE_POSE) = range(9)
 # What the safety net did to an emitted action (Corrector.guard_counts).
 GUARDS = ("none", "clipped_to_bounds", "held_nonfinite_action")
 GUARD_NONE, GUARD_CLIPPED, GUARD_HELD = range(3)
@@ -36,7 +39,12 @@ _FIELDS = (
     ("bias", lambda n: (n,)),  # C(q, qdot) qdot + G(q), N m
     ("tau", lambda n: (n,)),  # applied joint torques (actuator + applied), N m
     ("J_pos", lambda n: (3, n)),  # translational Jacobian of the end-effector, m/rad
+    # control steps since the object and target poses were observed (the older of the two; 0 = this step, as
+    # a simulator's exact state always is). Last, so every other field's offset is what it was before it
+    # existed; a packed state without it (LEGACY) reads as age 0 (`upgrade`).
+    ("pose_age", lambda n: ()),
 )
+POSE_FIELDS = ("obj_pos", "obj_rest_z", "target_pos")  # what a perception stack reports (sources/perception.py)
 
 
 @functools.lru_cache(maxsize=None)
@@ -77,6 +85,20 @@ def n_joints_from_size(size: int) -> int:
     raise ValueError(f"physvla: a packed state of length {size} matches no arm joint count")
 
 
+@functools.lru_cache(maxsize=None)
+def is_legacy_size(size: int) -> bool:
+    """A packed state written before `pose_age` existed (one float shorter than packed_size(n) for some n)."""
+    return any(packed_size(n) - 1 == size for n in range(1, 64))
+
+
+def upgrade(flat: np.ndarray) -> np.ndarray:
+    """A (B, L) packed state as the current layout holds it: one written before `pose_age` existed gets
+    a pose_age of 0 (its source read the simulator's exact pose); a current one is returned as it is."""
+    if flat.ndim == 2 and is_legacy_size(flat.shape[1]):
+        return np.concatenate([np.asarray(flat, dtype=np.float64), np.zeros((flat.shape[0], 1))], axis=1)
+    return flat
+
+
 @dataclass
 class PhysState:
     """Physical state of B envs (see _FIELDS for each attribute's meaning and unit).
@@ -100,6 +122,7 @@ class PhysState:
     bias: np.ndarray  # (B, n)
     tau: np.ndarray  # (B, n)
     J_pos: np.ndarray  # (B, 3, n)
+    pose_age: np.ndarray  # (B,) control steps
 
     @property
     def batch_size(self) -> int:
@@ -135,6 +158,8 @@ class PhysState:
         flat = np.ascontiguousarray(flat, dtype=np.float64)
         if flat.ndim == 1:
             flat = flat[None]
+        if flat.ndim == 2 and is_legacy_size(flat.shape[1]):
+            flat = upgrade(flat)
         if flat.ndim != 2:
             raise ValueError(f"physvla: packed state must be (B, L), got shape {flat.shape}")
         b = flat.shape[0]

@@ -108,6 +108,7 @@ class FetchStateSource:
                 obj_pos=data.site_xpos[self._obj][None],
                 obj_rest_z=np.array([self.obj_rest_z]),
                 target_pos=np.asarray(sim.goal, dtype=np.float64)[None],
+                pose_age=np.zeros(1),
                 **{k: v[None] for k, v in self.oracle.read(data).items()},
             )
             return st.pack()[0]

@@ -22,7 +22,8 @@ import importlib
 import numpy as np
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import GRIPPER_OPEN, HIGH, LOW, METRES_PER_UNIT, PHASE_REF_OBJECT
+from lerobot_physvla.core.corrections.base import (GRIPPER_OPEN, HIGH, LOW, METRES_PER_UNIT, PHASE_REF_OBJECT,
+                                                   POSE_ERROR_M, POSE_MAX_AGE)
 from lerobot_physvla.core.corrections.base import Correction  # noqa: F401  (re-exported)
 
 CORRECTIONS: tuple = tuple(importlib.import_module(f"{__name__}.{f.stem}").CORRECTION for f in slots.files())
@@ -54,6 +55,7 @@ def params(cfg, layout) -> np.ndarray:
     p[METRES_PER_UNIT], p[GRIPPER_OPEN] = layout.metres_per_unit, layout.gripper_open
     p[LOW], p[HIGH] = layout.low, layout.high
     p[PHASE_REF_OBJECT] = cfg.phase_ref == "object"
+    p[POSE_ERROR_M], p[POSE_MAX_AGE] = cfg.pose_error_m, cfg.pose_max_age_steps
     on = active(cfg)
     for c in CORRECTIONS:
         p[slots.ON[c.name]] = c.name in on

@@ -3,6 +3,8 @@
     a_pos = beta (p* - p_eef) / scale + (1 - beta) a_raw_pos,   p* = p_obj + offset
 
 p* and p_eef in metres, scale = metres per action unit, so the first term is in action units.
+Pose error (pose_error_m = e): p* comes from the object's pose, so beta is scaled by max(0, 1 - e / delta_grasp):
+the blend toward a point that may be e off fades out as e nears the grasp envelope.
 """
 
 from numba import njit
@@ -24,7 +26,7 @@ def grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit):
 
 
 CORRECTION = Correction("grasp_guidance", GRASP, 0, grasp_guidance, values={
-    "BETA": lambda c, lay: c.beta, "OFFSET_X_M": lambda c, lay: c.grasp_offset_m[0],
+    "BETA": lambda c, lay: c.beta * max(0.0, 1.0 - c.pose_error_m / c.delta_grasp_m), "OFFSET_X_M": lambda c, lay: c.grasp_offset_m[0],
     "OFFSET_Y_M": lambda c, lay: c.grasp_offset_m[1], "OFFSET_Z_M": lambda c, lay: c.grasp_offset_m[2]},
     fields=(Field("beta", float, 0.0, 0.5, "the blend's weight toward the grasp point (0: the policy's action)"),
             Field("grasp_offset_m", tuple[float, float, float], (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),

@@ -3,7 +3,8 @@ paper; lift_assist_u > 0).
 
     holding:  gripper commanded closed, fingers stopped >= FINGERS_M apart     (something between them)
     still:    |p_eef - p_eef(hold began)| <= STILL_M and |fingers - fingers(hold began)| <= FINGER_STILL_M
-    at rest:  p_obj_z - z_rest >= -REST_M                (lift_assist_at_rest only: not carried below its rest)
+    at rest:  p_obj_z - z_rest >= -(REST_M + e)          (lift_assist_at_rest only: not carried below its rest;
+                                                           e = pose_error_m, so an error alone never says "below")
     after `assist_steps` control steps in a row holding and still (in the grasp phase, so not lifted):
         a_z <- max(a_raw_z, lift_assist_u)                                      (action units)
     until the phase leaves grasp (the object is lifted past h_lift), the policy commands open, or
@@ -28,7 +29,8 @@ rest, and the assist raised it for 22 steps: candidate 12's run of that episode 
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, FINGERS, GRIPPER, GRIPPER_OPEN, LIFT, Z, Correction, Field
+from lerobot_physvla.core.corrections.base import (EEF, FINGERS, GRIPPER, GRIPPER_OPEN, LIFT, POSE_ERROR_M, Z, Correction,
+                                                   Field)
 from lerobot_physvla.core.corrections.release_assist import STILL_M
 from lerobot_physvla.core.phase import GRASP
 
@@ -64,7 +66,7 @@ def lift_assist(a_raw, a_phys, idx, geo, p, mem, commit):
         elif commit:
             mem[LIFT_STALL] = -1.0
         return
-    held = geo[FINGERS] >= FINGERS_M and (p[LIFT_AT_REST] < 0.5 or geo[LIFT] >= -REST_M)
+    held = geo[FINGERS] >= FINGERS_M and (p[LIFT_AT_REST] < 0.5 or geo[LIFT] >= -(REST_M + p[POSE_ERROR_M]))
     if held and n > 0.0:  # its first step is still by definition
         moved = 0.0
         for k in range(3):

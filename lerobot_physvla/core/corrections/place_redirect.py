@@ -16,7 +16,7 @@ gripper stay the policy's, so it still decides when to lower and release.
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import METRES_PER_UNIT, OBJ, TGT, Correction, Field
+from lerobot_physvla.core.corrections.base import METRES_PER_UNIT, OBJ, POSE_ERROR_M, TGT, Correction, Field
 from lerobot_physvla.core.phase import PLACE
 
 PARAMS = ("REDIRECT_GAIN", "REDIRECT_TOL_M")  # the steering gain (action units per unit of error); its tolerance, m
@@ -37,7 +37,7 @@ def steer(geo, p, tol):
 def place_redirect(a_raw, a_phys, idx, geo, p, mem, commit):
     """x, y channels <- k (target - object) beyond tol (`steer`); z, rotation and gripper, and x, y
     within tol: the policy's (a_phys starts as a_raw)."""
-    k, ex, ey = steer(geo, p, p[REDIRECT_TOL_M])
+    k, ex, ey = steer(geo, p, p[REDIRECT_TOL_M] + p[POSE_ERROR_M])  # within tol + the pose error: left alone
     if k > 0.0:
         a_phys[idx[0]] = k * ex
         a_phys[idx[1]] = k * ey

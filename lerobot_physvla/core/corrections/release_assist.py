@@ -7,6 +7,8 @@ paper; release_assist_m > 0, with place_rule=release_veto).
                 (assist_still=hand: |p_eef - p_eef(hold began)| <= STILL_M instead      (metres))
     after `assist_steps` control steps in a row on target, on a surface and still:
         gripper <- open, and kept open while the phase stays place
+    pose error (pose_error_m = e): "on target" is judged from the poses, so the assist acts only while
+    e <= tol; beyond, it cannot tell on target from off it and leaves the gripper to the policy.
 
 Traced failure (eval/results/learned_mid, docs/method.md): weak chunked ACTs carry the bowl to the
 plate, lower it to 1-4 cm above the plate's origin (or set it down on it) and then hold it there,
@@ -28,7 +30,8 @@ still" means; the command is a proxy for it.
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, LIFT, OBJ, TGT, Correction, Field
+from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_OPEN, LIFT, OBJ, POSE_ERROR_M, TGT, Correction,
+                                                   Field)
 from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M
 from lerobot_physvla.core.phase import PLACE
 
@@ -46,7 +49,7 @@ SUPPORT_M = 0.05  # the target is a surface: within this of the object's resting
 def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
     """Gripper opened once the policy has held the object still over the target for assist_steps."""
     g = idx[GRIPPER]
-    if g < 0:
+    if g < 0 or p[POSE_ERROR_M] > p[REDIRECT_TOL_M]:  # the pose cannot say "on target" within tol
         return
     if mem[STALL] >= p[ASSIST_STEPS]:  # latched: open for as long as the phase stays place
         a_phys[g] = p[GRIPPER_OPEN]

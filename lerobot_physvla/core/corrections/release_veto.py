@@ -10,7 +10,8 @@ learned policy then waits there for the rest of the episode (docs/decisions/defa
 This correction leaves the policy alone until the one moment its error is certain to matter: it
 opens the gripper with the held object's centre more than `tol` from the target's. Only then is
 the release held back (gripper closed) and the object steered to within `tol`, where the
-policy's own open command goes through. The vertical channel stays the policy's throughout. A
+policy's own open command goes through (tol + pose_error_m: a veto holds back only a release that misses
+whatever the pose's error). The vertical channel stays the policy's throughout. A
 hold lasts at most `hold_steps` control steps in a row (the target may be out of reach), after
 which the policy's command goes through as it is.
 
@@ -24,7 +25,7 @@ steers to half the tolerance before it lets the policy's open through (not to it
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, OBJ, Z, Correction, Field
+from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, OBJ, POSE_ERROR_M, Z, Correction, Field
 from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M, steer
 from lerobot_physvla.core.phase import GRASP, PLACE
 
@@ -45,6 +46,7 @@ def release_veto(a_raw, a_phys, idx, geo, p, mem, commit):
         tol = p[REDIRECT_TOL_M]
         if carry and mem[HOLD] > 0.0:
             tol = 0.5 * tol  # a hold under way steers to half the tolerance
+        tol += p[POSE_ERROR_M]  # a release is held back only where it misses whatever the pose's error
         k, ex, ey = steer(geo, p, tol)
         miss = k > 0.0
         if miss and mem[HOLD] < p[HOLD_STEPS]:

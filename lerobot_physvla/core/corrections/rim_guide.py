@@ -9,6 +9,9 @@ grasp can close on it (beyond the paper; rim_guide_m > 0).
         a_xy <- clip((p_obj_xy + rim_guide_m * (p_eef - p_obj)_xy / rho - p_eef_xy) / metres_per_unit, -1, 1)
     z and the gripper stay the policy's; the pull ends where the hand enters the grasp phase
     (rho < delta_grasp), leaves the zone, or the policy closes.
+    pose error (pose_error_m = e): the pull aims the hand at a point computed from the object's pose, so e
+    moves the grasp by up to e; it pulls only while e < delta_grasp - rim_guide_m (the slack between the
+    rim point and where the grasp phase begins), and leaves the hand to the policy beyond.
     rim_guide_into_grasp (rim_guide_grasp): a pull begun in the approach phase goes on in the grasp
     phase, the same rule, until the hand is within RIM_ARRIVE_M of rim_guide_m (rho <= rim_guide_m +
     RIM_ARRIVE_M), rises out of the zone, or the policy closes; it never begins there.
@@ -37,13 +40,14 @@ on init states 20-24; not shipped, off in every preset.
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, METRES_PER_UNIT, OBJ, X, Y, Correction, Field
+from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_OPEN, METRES_PER_UNIT, OBJ, POSE_ERROR_M, X, Y,
+                                                   Correction, Field)
 from lerobot_physvla.core.phase import APPROACH, GRASP
 
-PARAMS = ("RIM_GUIDE_M",)  # the distance from the object's origin the hand is pulled to, m
+PARAMS = ("RIM_GUIDE_M", "RIM_SLACK_M")  # the distance from the object's origin the hand is pulled to; the pose error it tolerates, m
 # the hand's x, y (m) over the last RIM_SETTLE_STEPS committed steps; steps recorded so far; 1.0 while it pulls
 MEMORY = (("RIM_TRACK", 10), ("RIM_AT", 1), ("RIM_ON", 1))
-(RIM_GUIDE_M,) = slots.params(__file__)
+RIM_GUIDE_M, RIM_SLACK_M = slots.params(__file__)
 RIM_TRACK, RIM_AT, RIM_ON = slots.memory(__file__)
 ON_RIM_GUIDE_GRASP = slots.P_SLOTS["ON_RIM_GUIDE_GRASP"]  # rim_guide_grasp.py goes on with this pull in the grasp phase
 RIM_SETTLE_STEPS = 5  # a hand that moved under RIM_SETTLE_M in this many control steps has settled
@@ -61,7 +65,8 @@ def rim_guide(a_raw, a_phys, idx, geo, p, mem, commit):
     hand, for a hand settled beside the object, outside delta_grasp (the approach phase); z and the
     gripper untouched. Called in the approach phase only; rim_track keeps the hand's history."""
     dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
-    on = low_open and 1e-9 < rho < RIM_REACH_M and (mem[RIM_ON] > 0.5 or _settled(geo, mem))
+    on = (low_open and 1e-9 < rho < RIM_REACH_M and p[POSE_ERROR_M] < p[RIM_SLACK_M]
+          and (mem[RIM_ON] > 0.5 or _settled(geo, mem)))
     if on:
         _pull(a_phys, idx, geo, p, dx, dy, rho)
     if commit:
@@ -114,7 +119,8 @@ def rim_guide_commit(phase, geo, p, mem):
     rim_track(geo, mem)
 
 
-CORRECTION = Correction("rim_guide", APPROACH, 0, rim_guide, values={"RIM_GUIDE_M": lambda c, lay: c.rim_guide_m},
+CORRECTION = Correction("rim_guide", APPROACH, 0, rim_guide, values={"RIM_GUIDE_M": lambda c, lay: c.rim_guide_m,
+                                                                         "RIM_SLACK_M": lambda c, lay: c.delta_grasp_m - c.rim_guide_m},
                         on=lambda c: c.rim_guide_m > 0.0, replaces=("approach_veto",), commit=rim_guide_commit,
                         fields=(Field("rim_guide_m", float, 0.047, 0.0, "a hand settled beside the object is pulled to "
                                       "this distance from its origin, m; 0 = off"),),
