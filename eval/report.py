@@ -338,9 +338,55 @@ def section_provenance(study, rows, sec, out) -> list[str]:
     return lines + [""]
 
 
+def section_error_sweep(study, rows, sec, out) -> list[str]:
+    """Success against perception error: per backbone, axis (bias, noise, ...) and level, the paired gain over
+    baseline of the configuration told the error and of the one not told, beside the exact-state configuration's
+    (`exact`); `kept` = the told gain over the exact one; a plot of the gains against the error per backbone."""
+    bl = study.blocks[sec["block"]]
+    base, exact = sec.get("against", "baseline"), sec["exact"]
+    head = ["| backbone | fault | level | told: gain [95 % CI] | won / lost | kept | not told: gain [95 % CI] | "
+            "won / lost | pass-throughs (told) |", "|---|---|---|---|---|---|---|---|---|"]
+    lines, curves = [], {}
+    for b in bl.backbones:
+        ref = cmp.paired(rows.get(exact, b, bl), rows.get(base, b, bl))
+        if not ref["n"]:
+            continue
+        lines += [f"**{b}**: baseline {pct(ref['base_success'])}, exact state {pct(ref['success'])}, gain "
+                  f"{pp(ref)} ({ref['won']} / {ref['lost']}, n = {ref['n']}).", "", *head]
+        for ax, spec in sec["axes"].items():
+            pts = []
+            for level, told, untold in zip(spec["levels"], spec["told"], spec["not_told"]):
+                t = cmp.paired(rows.get(told, b, bl), rows.get(base, b, bl))
+                u = cmp.paired(rows.get(untold, b, bl), rows.get(base, b, bl)) if untold else None
+                kept = t["diff"] / ref["diff"] if t["n"] and ref["diff"] > 0 else float("nan")
+                through = _passthroughs(rows.get(told, b, bl))
+                t_gain, t_wl = (pp(t), f"{t['won']} / {t['lost']}") if t["n"] else ("-", "-")
+                u_gain, u_wl = (pp(u), f"{u['won']} / {u['lost']}") if u and u["n"] else ("-", "-")
+                kept_s = "-" if kept != kept else f"{kept:.2f}"
+                lines.append(f"| {b} | {ax} | {level:g} | {t_gain} | {t_wl} | {kept_s} | {u_gain} | {u_wl} | {through} |")
+                pts.append((level, t, u))
+            curves[(b, ax)] = (ref, pts)
+        lines.append("")
+    if sec.get("plot") and curves:
+        _plot_error_sweep(curves, [b for b in bl.backbones if any(k[0] == b for k in curves)], list(sec["axes"]),
+                          out / sec["plot"], sec.get("plot_title", study.title))
+        lines += [f"![success gain against pose error]({sec['plot']})", ""]
+    return lines
+
+
+def _passthroughs(rs: list[dict]) -> str:
+    """The corrector's pass-through reasons summed over episodes (`-` for none)."""
+    total = defaultdict(int)
+    for r in rs:
+        for k, v in r.get("passthrough", {}).items():
+            total[k] += v
+    return ", ".join(f"{k} {v}" for k, v in sorted(total.items())) or "-"
+
+
 SECTIONS = {"text": section_text, "summary": section_summary, "paired": section_paired,
             "paired_backbones": section_paired_backbones, "sweep": section_sweep, "noise_cells": section_noise_cells,
-            "compares": section_compares, "scatter": section_scatter, "provenance": section_provenance}
+            "compares": section_compares, "scatter": section_scatter, "provenance": section_provenance,
+            "error_sweep": section_error_sweep}
 
 
 def _rel(study: Study, path: str) -> str:
@@ -437,4 +483,43 @@ def _plot_sweep(cell, levels, configs, path: Path, title: str) -> None:
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _plot_error_sweep(curves, backbones, axes_names, path: Path, title: str) -> None:
+    """One row per backbone, one panel per fault: the paired gain over baseline (95 % CI) against the level,
+    told and not told, with the exact-state gain as a line."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(backbones), len(axes_names), figsize=(3.4 * len(axes_names), 3.0 * len(backbones)),
+                             squeeze=False, sharey="row")
+    for i, b in enumerate(backbones):
+        for j, ax_name in enumerate(axes_names):
+            ax = axes[i][j]
+            ref, pts = curves[(b, ax_name)]
+            ax.axhline(ref["diff"] * 100, color="grey", ls="--", lw=1, label="exact state")
+            ax.axhline(0, color="black", lw=0.6)
+            for k, (label, color) in enumerate((("told", "tab:blue"), ("not told", "tab:red"))):
+                xs, ys, lo, hi = [], [], [], []
+                for level, t, u in pts:
+                    r = t if k == 0 else u
+                    if r and r["n"]:
+                        xs.append(level)
+                        ys.append(r["diff"] * 100)
+                        lo.append((r["diff"] - r["ci"][0]) * 100)
+                        hi.append((r["ci"][1] - r["diff"]) * 100)
+                if xs:
+                    ax.errorbar(xs, ys, yerr=[lo, hi], marker="o", capsize=3, color=color, label=label)
+            ax.set_title(f"{b}: {ax_name}", fontsize=8)
+            ax.set_xlabel({"bias": "bias (m)", "noise": "noise sigma (m)", "lag": "lag (steps)",
+                           "dropout": "dropout (fraction of steps)"}.get(ax_name, ax_name), fontsize=8)
+            if j == 0:
+                ax.set_ylabel("success gain over baseline (pp)", fontsize=8)
+            ax.legend(fontsize=6)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -9,6 +9,14 @@ Each sub-env (in the main process or an async worker) is lerobot's own `LiberoEn
 and, with cameras=false, builds LIBERO without its offscreen renderer (~10 ms a step here instead
 of ~600 ms), returns no pixels, and adds `environment_state` = [object xyz, target xyz] so
 state-based policies have the scene. The env processors put `PhysVLAStateCaptureStep` first.
+
+The `pose_*` fields put a perception model (sources/perception.py: per-episode bias, per-step noise,
+lag, dropouts) between the simulator and the exported physvla_state, as a real robot's perception
+would report the object's and the target's poses; the policy's own observation (environment_state
+included) stays exact:
+
+    lerobot-eval ... --env.type=libero_physvla --env.pose_bias_m=0.02 --env.pose_noise_m=0.01 \
+        --policy.postprocess=physvla --physvla.pose_error_m=0.04
 """
 
 from __future__ import annotations
@@ -32,6 +40,7 @@ from lerobot.utils.constants import OBS_ENV_STATE, OBS_IMAGES
 from lerobot_physvla import compat
 from lerobot_physvla.processor.physvla_processor import EXTRA_KEY, STATE_KEY, PhysVLAStateCaptureStep
 from lerobot_physvla.core.state import field_offsets, packed_size
+from lerobot_physvla.sources.perception import Perception, PerceptionConfig
 
 N_JOINTS = 7  # the Panda of LIBERO
 ENV_STATE_DIM = 6  # object xyz, target xyz
@@ -46,11 +55,13 @@ class PhysVLAStateExport(gym.Wrapper):
         cameras: False builds LIBERO with no renderer and returns no pixels.
         task_id: the LIBERO task id (exported in physvla_extra).
         read_failures: state reads that raised (those steps export an invalid state: no correction).
+        perception: the perception model between the simulator and physvla_state (None: exact poses).
     """
 
-    def __init__(self, env, cameras: bool = True):
+    def __init__(self, env, cameras: bool = True, perception: PerceptionConfig | None = None):
         super().__init__(env)
         self.cameras = cameras
+        self.perception = None if perception is None or perception.exact else Perception(perception)
         self.source = None
         self.read_failures = 0  # reads of the state source that raised (those rows export valid = 0)
         self._last_action = np.zeros(7)
@@ -96,7 +107,7 @@ class PhysVLAStateExport(gym.Wrapper):
         if row is None or row.shape != (packed_size(N_JOINTS),):
             row = np.zeros(packed_size(N_JOINTS))  # valid = 0: the corrector passes through
         rs = dict(obs.get("robot_state", {}))
-        rs[STATE_KEY] = row
+        rs[STATE_KEY] = row if self.perception is None else self.perception.apply(row[None])[0]
         rs[EXTRA_KEY] = np.concatenate([[self.task_id, float(success)], self._last_action])
         obs["robot_state"] = rs
         if not self.cameras:  # object xyz, target xyz
@@ -116,6 +127,8 @@ class PhysVLAStateExport(gym.Wrapper):
             self.source = None
             info = {**info, "physvla_state_error": repr(e)}
         self._last_action = np.zeros(7)
+        if self.perception is not None:
+            self.perception.reset(seed=kwargs.get("seed"))
         return self._augment(obs, False), info
 
     def step(self, action):
@@ -129,8 +142,8 @@ class PhysVLAStateExport(gym.Wrapper):
         return self.env.render() if self.cameras else _BLANK_FRAME
 
 
-def _wrapped(make_env, cameras: bool):
-    return PhysVLAStateExport(make_env(), cameras=cameras)
+def _wrapped(make_env, cameras: bool, perception: PerceptionConfig | None = None):
+    return PhysVLAStateExport(make_env(), cameras=cameras, perception=perception)
 
 
 @EnvConfig.register_subclass("libero_physvla")
@@ -141,12 +154,26 @@ class LiberoPhysVLAEnvConfig(LiberoEnvConfig):
     Attributes:
         cameras: render LIBERO's cameras (as `libero`); false gives a state-only env whose
             observations are robot_state + environment_state (object and target xyz).
+        pose_bias_m, pose_noise_m, pose_lag_steps, pose_dropout: the perception model's faults on the
+            object's and the target's poses in physvla_state (sources/perception.py PoseFaults: a bias of
+            this length per episode (m), noise sigma per axis (m), lag (control steps), the fraction of
+            steps missing); all 0: exact. The policy's observation is never touched.
     """
 
     cameras: bool = True
+    pose_bias_m: float = 0.0
+    pose_noise_m: float = 0.0
+    pose_lag_steps: int = 0
+    pose_dropout: float = 0.0
+
+    @property
+    def perception(self) -> PerceptionConfig:
+        return PerceptionConfig.both(bias_m=self.pose_bias_m, noise_m=self.pose_noise_m,
+                                     lag_steps=self.pose_lag_steps, dropout=self.pose_dropout)
 
     def __post_init__(self):
         super().__post_init__()
+        self.perception  # noqa: B018 - a fault out of range is a clear ValueError now, not in a worker
         if not self.cameras:
             for key in list(self.features):
                 if self.features[key].type == FeatureType.VISUAL:
@@ -160,7 +187,7 @@ class LiberoPhysVLAEnvConfig(LiberoEnvConfig):
 
         if self.task is None:
             raise ValueError("libero_physvla requires --env.task (e.g. libero_spatial)")
-        with compat.wrapped_libero_env_factories(partial(_wrapped, cameras=self.cameras)):
+        with compat.wrapped_libero_env_factories(partial(_wrapped, cameras=self.cameras, perception=self.perception)):
             return create_libero_envs(
                 task=self.task, n_envs=n_envs, camera_name=self.camera_name, init_states=self.init_states,
                 gym_kwargs=self.gym_kwargs, env_cls=compat.vector_env_class(use_async_envs, n_envs),

@@ -29,18 +29,21 @@ def _scene(name: str):
     return _SCENES[name]
 
 
-def run(scene, actions: np.ndarray, seed: int, corrector=None) -> dict:
-    """Execute `actions` open loop from the scene's seeded start; the corrector (if any) corrects each."""
+def run(scene, actions: np.ndarray, seed: int, corrector=None, perception=None) -> dict:
+    """Execute `actions` open loop from the scene's seeded start; the corrector (if any) corrects each,
+    reading the state through `perception` (sources.perception.Perception) where one is given."""
     scene.reset(seed)
     if corrector is not None:
         corrector.reset()
+    if perception is not None:
+        perception.reset(seed=seed)
     eef, success, steps, changed = [], False, 0, 0
     for steps, a in enumerate(actions[: scene.horizon], start=1):
         st = scene.read()
         eef.append(st.eef_pos[0].copy())
         out = a[None]
         if corrector is not None:
-            out = corrector(out, st)
+            out = corrector(out, st) if perception is None else corrector.correct_packed(out, perception.apply(st.pack()))
             changed += int(np.abs(out - a[None]).max() > 0)
         success, _ = scene.step(out[0])
         if success and scene.stop_on_success:
@@ -52,11 +55,15 @@ def run(scene, actions: np.ndarray, seed: int, corrector=None) -> dict:
 
 
 def resim_shard(cfg_dict: dict, items: list[tuple], batch: int = 64) -> list[dict]:
-    """Re-simulate episodes [(index, scene name, seed, actions (T, A), recorded eef (T, 3) or None)]."""
+    """Re-simulate episodes [(index, scene name, seed, actions (T, A), recorded eef (T, 3) or None)];
+    cfg_dict's "perception" (PerceptionConfig.to_dict()), where present, sits between the scene and the corrector."""
     import warnings
 
     from lerobot_physvla.core.corrector import Corrector
+    from lerobot_physvla.sources.perception import Perception, PerceptionConfig
 
+    cfg_dict = dict(cfg_dict)
+    faults = PerceptionConfig.from_dict(cfg_dict.pop("perception", {}))
     cfg = PhysVLAConfig.from_dict(cfg_dict)
     out = []
     for index, name, seed, actions, rec_eef in items:
@@ -64,7 +71,7 @@ def resim_shard(cfg_dict: dict, items: list[tuple], batch: int = 64) -> list[dic
         raw = run(scene, actions, seed)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            cor = run(scene, actions, seed, Corrector(cfg))
+            cor = run(scene, actions, seed, Corrector(cfg), None if faults.exact else Perception(faults))
         div = None
         if rec_eef is not None:
             n = min(len(rec_eef), len(raw["eef"]))
@@ -88,8 +95,9 @@ def check_resimulable(data: ReplayData) -> None:
 
 
 def replay_resim(data: ReplayData, cfg: PhysVLAConfig, workers: int = 1, backend: str = "process",
-                 progress: bool = True) -> list[dict]:
-    """Per-episode re-simulation records (recorded success beside raw and corrected)."""
+                 progress: bool = True, perception=None) -> list[dict]:
+    """Per-episode re-simulation records (recorded success beside raw and corrected); perception: a
+    sources.perception.PerceptionConfig between the simulator and the corrector (None: exact poses)."""
     from lerobot_physvla.replay.shards import map_shards
 
     check_resimulable(data)
@@ -101,7 +109,8 @@ def replay_resim(data: ReplayData, cfg: PhysVLAConfig, workers: int = 1, backend
             f = field_offsets(n_joints_from_size(ep.states.shape[1]))
             rec_eef = ep.states[:, f["eef_pos"]:f["eef_pos"] + 3]
         items.append((ep.index, name, seed, ep.actions, rec_eef))
-    res = {r["index"]: r for r in map_shards(resim_shard, cfg.to_dict(), items, workers=workers, backend=backend,
+    cfg_dict = cfg.to_dict() | ({} if perception is None or perception.exact else {"perception": perception.to_dict()})
+    res = {r["index"]: r for r in map_shards(resim_shard, cfg_dict, items, workers=workers, backend=backend,
                                              batch=1, progress=progress, desc="re-simulation")}
     return [{"episode": ep.index, "task": ep.task, "recorded_success": ep.success, **res[ep.index]}
             for ep in data.episodes]

@@ -54,6 +54,10 @@ class ReplayArgs:
             neither observation.physvla_state nor observation.environment_state.
         plots: per-episode plots to draw (the first N episodes; 0 = none).
         batch: episodes corrected in lockstep per corrector call (offline).
+        pose_bias_m, pose_noise_m, pose_lag_steps, pose_dropout: resim only: the perception model's faults
+            on the object's and the target's poses the corrector reads (sources/perception.py PoseFaults:
+            a bias of this length per episode (m), noise sigma per axis (m), lag (control steps), the
+            fraction of steps missing); all 0: exact.
     """
 
     dataset: DatasetArgs = field(default_factory=DatasetArgs)
@@ -68,6 +72,17 @@ class ReplayArgs:
     batch: int = 64
     object_xyz: list[float] | None = None
     target_xyz: list[float] | None = None
+    pose_bias_m: float = 0.0
+    pose_noise_m: float = 0.0
+    pose_lag_steps: int = 0
+    pose_dropout: float = 0.0
+
+    @property
+    def perception(self):
+        from lerobot_physvla.sources.perception import PerceptionConfig
+
+        return PerceptionConfig.both(bias_m=self.pose_bias_m, noise_m=self.pose_noise_m, lag_steps=self.pose_lag_steps,
+                                     dropout=self.pose_dropout)
 
 
 def parse(argv: list[str]) -> tuple[ReplayArgs, object]:
@@ -86,6 +101,13 @@ def parse(argv: list[str]) -> tuple[ReplayArgs, object]:
         raise FlagError(f"--mode={args.mode}: unknown; choose one of {', '.join(MODES)}")
     if args.mode == "policy" and not args.policy.path:
         raise FlagError("--mode=policy needs --policy.path=<a LeRobot checkpoint directory>")
+    try:
+        faults = args.perception
+    except ValueError as e:
+        raise FlagError(f"--pose_*: {e}") from e
+    if not faults.exact and args.mode != "resim":
+        raise FlagError("--pose_bias_m / --pose_noise_m / --pose_lag_steps / --pose_dropout act on a live "
+                        "simulator's state: use them with --mode=resim")
     for name in ("object_xyz", "target_xyz"):
         v = getattr(args, name)
         if v is not None and (len(v) != 3 or not np.isfinite(v).all()):
@@ -121,7 +143,8 @@ def run(args: ReplayArgs, cfg) -> dict:
     if args.mode == "resim":
         from lerobot_physvla.replay.resim import replay_resim
 
-        extra_records = replay_resim(data, cfg, workers=args.workers, backend=args.backend)
+        extra_records = replay_resim(data, cfg, workers=args.workers, backend=args.backend,
+                                     perception=args.perception)
     elif args.mode == "policy":
         from lerobot_physvla.replay.policy import replay_policy
 

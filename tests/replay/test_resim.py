@@ -45,3 +45,19 @@ def test_resim_on_robosuite_lift_plate(tmp_path):
     assert rec["scene"] == "lift_plate" and rec["recorded_success"] is False
     assert rec["raw"]["success"] is False and rec["state_divergence_m"] == 0.0
     assert rec["corrected"]["success"] is True and rec["corrected"]["frames_changed"] > 0
+
+
+def test_resim_reads_the_state_through_the_perception_model(tmp_path):
+    """The recorded Lift failure above, re-simulated with the poses 3 steps late and the corrector told to act
+    on none older than 1: every step passes through (stale_pose), so the corrected run is the raw one."""
+    from lerobot_physvla.replay.record import record
+    from lerobot_physvla.sources.perception import PerceptionConfig
+
+    root = tmp_path / "lift"
+    record(root, ["lift_plate"], [100], expert={"place_bias_units": 1.7}, progress=False)
+    data = load("local/physvla_replay", root)
+    cfg = preset(place_rule="redirect", redirect_tol_m=0.0, pose_max_age_steps=1)
+    (late,) = replay_resim(data, cfg, progress=False, perception=PerceptionConfig.both(lag_steps=3))
+    assert late["corrected"]["frames_changed"] == 0 and late["corrected"]["success"] is False
+    (fresh,) = replay_resim(data, cfg, progress=False, perception=PerceptionConfig.both(lag_steps=1))
+    assert fresh["corrected"]["frames_changed"] > 0

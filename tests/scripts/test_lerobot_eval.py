@@ -81,6 +81,19 @@ def test_corrected_state_only_run_executes_exactly_what_the_corrector_says(polic
             np.testing.assert_allclose(a, corrected[t], atol=1e-6)
 
 
+def test_pose_faults_on_the_state_export_reach_the_corrector_through_the_real_console_script(policies, tmp_path):
+    out = tmp_path / "late"
+    r = _eval(policies["state"], out, ["--env.type=libero_physvla", "--env.cameras=false", "--eval.n_episodes=2",
+                                       "--eval.batch_size=2", "--env.episode_length=12", "--env.pose_lag_steps=2",
+                                       "--env.pose_bias_m=0.02", "--policy.postprocess=physvla",
+                                       "--physvla.pose_error_m=0.02"])
+    diag = json.loads((out / "physvla_diagnostics.json").read_text())
+    # lag 2: no pose has arrived in each episode's first 2 steps; every later one is 2 steps old, within the bound
+    assert diag["passthrough"] == {"missing_pose": 4} and diag["steps"] == 24
+    assert diag["physvla_config"]["pose_error_m"] == 0.02
+    assert "missing_pose" in r.stdout + r.stderr
+
+
 def test_flag_absent_or_none_is_plain_lerobot_and_physvla_changes_the_rollout(policies, tmp_path):
     cam = ["--env.type=libero", "--eval.n_episodes=1", "--eval.batch_size=1", "--env.episode_length=6"]
     _eval(policies["image"], tmp_path / "plain", cam, {"PHYSVLA_DISABLE": "1"})

@@ -81,6 +81,9 @@ class Correction:
         fields: the configuration fields it owns (PhysVLAConfig is assembled from them).
         check: f(cfg) -> None, raising ValueError (one line, saying what to set) where the
             configuration asks it for something it cannot do; or None.
+        pose: how its decisions answer to the pose error it is told (PhysVLAConfig.pose_error_m, p[POSE_ERROR_M]),
+            in words; "" for one that reads p[POSE_ERROR_M] nowhere (it aims at no point of the pose and decides
+            by no distance of the pose's order). A test holds each "" to that.
     """
 
     name: str
@@ -93,6 +96,7 @@ class Correction:
     commit: Callable | None = None
     fields: tuple[Field, ...] = ()
     check: Callable | None = None
+    pose: str = ""
 
 
 def unit_interval(cfg, *names: str) -> None:

@@ -31,7 +31,8 @@ CORRECTION = Correction("grasp_guidance", GRASP, 0, grasp_guidance, values={
     fields=(Field("beta", float, 0.0, 0.5, "the blend's weight toward the grasp point (0: the policy's action)"),
             Field("grasp_offset_m", tuple[float, float, float], (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),
                   "the grasp point p* = the object's position + this offset, m (world frame)")),
-    check=lambda c: (unit_interval(c, "beta"), _three(c.grasp_offset_m)))
+    check=lambda c: (unit_interval(c, "beta"), _three(c.grasp_offset_m)),
+    pose="blends toward a point from the object's pose: beta x max(0, 1 - pose_error_m / delta_grasp_m)")
 
 
 def _three(offset) -> None:

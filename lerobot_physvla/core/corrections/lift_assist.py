@@ -93,6 +93,7 @@ CORRECTION = Correction("lift_assist", GRASP, 1, lift_assist, values={
     "LIFT_ASSIST_U": lambda c, lay: c.lift_assist_u, "LIFT_AT_REST": lambda c, lay: c.lift_assist_at_rest,
     "LIFT_ASSIST_STEPS": lambda c, lay: c.assist_steps},
     on=lambda c: c.lift_assist_u > 0.0, commit=lift_assist_commit,
+    pose="its at-rest check allows pose_error_m more below the rest (the lift it commands is the hand's own)",
     fields=(Field("lift_assist_u", float, 0.5, 0.0, "the z command a still, closed, unlifted hold is raised to, "
                   "action units; 0 = off"),
             Field("lift_assist_at_rest", bool, True, False, "lift only an object at its resting height or above")),

@@ -46,6 +46,7 @@ def place_redirect(a_raw, a_phys, idx, geo, p, mem, commit):
 CORRECTION = Correction("place_redirect", PLACE, 0, place_redirect, values={
     "REDIRECT_GAIN": lambda c, lay: c.redirect_gain, "REDIRECT_TOL_M": lambda c, lay: c.redirect_tol_m},
     on=lambda c: c.place_rule == "redirect",
+    pose="steers only the object's error beyond redirect_tol_m + pose_error_m",
     fields=(Field("redirect_gain", float, 0.5, 0.5, "the steering gain, action units per action unit of error"),
             Field("redirect_tol_m", float, 0.02, 0.0, "the held object's centre within this of the target's: "
                   "left alone (the release veto: a release beyond it is held back), m")),

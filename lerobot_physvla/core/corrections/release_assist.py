@@ -92,6 +92,7 @@ CORRECTION = Correction("release_assist", PLACE, 1, release_assist, values={
     "ASSIST_M": lambda c, lay: c.release_assist_m, "ASSIST_STEPS": lambda c, lay: c.assist_steps,
     "ASSIST_STILL_HAND": lambda c, lay: c.assist_still == "hand"},
     on=lambda c: c.release_assist_m > 0.0 and c.place_rule == "release_veto", commit=release_assist_commit,
+    pose="judges 'on target' from the poses: off once pose_error_m > redirect_tol_m",
     fields=(Field("release_assist_m", float, 0.04, 0.0, "open for a hold still over the target at most this above "
                   "it, m; 0 = off"),
             Field("assist_steps", int, 10, 10, "control steps a hold lasts before the release (and the lift) assist "

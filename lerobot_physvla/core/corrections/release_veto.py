@@ -82,6 +82,7 @@ def carried_phase(ph, g, mem, commit):
 CORRECTION = Correction("release_veto", PLACE, 0, release_veto, values={
     "HOLD_STEPS": lambda c, lay: c.hold_steps, "RELEASE_CARRY": lambda c, lay: c.release_carry},
     on=lambda c: c.place_rule == "release_veto", commit=release_veto_commit,
+    pose="holds back only a release beyond its tolerance + pose_error_m",
     fields=(Field("hold_steps", int, 40, 40, "the longest a release is held back in a row, control steps"),
             Field("release_carry", bool, True, False, "the phase stays place while the carried object is at the "
                   "hand, the hand does not rise during a hold, a hold steers to half the tolerance")),

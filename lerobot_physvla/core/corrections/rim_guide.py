@@ -124,7 +124,9 @@ CORRECTION = Correction("rim_guide", APPROACH, 0, rim_guide, values={"RIM_GUIDE_
                         on=lambda c: c.rim_guide_m > 0.0, replaces=("approach_veto",), commit=rim_guide_commit,
                         fields=(Field("rim_guide_m", float, 0.047, 0.0, "a hand settled beside the object is pulled to "
                                       "this distance from its origin, m; 0 = off"),),
-                        check=lambda c: _check(c))
+                        check=lambda c: _check(c),
+                        pose="aims the hand at a point from the object's pose: no pull once pose_error_m >= "
+                             "delta_grasp_m - rim_guide_m")
 
 
 def _check(c) -> None:
