@@ -54,7 +54,7 @@ def _convert(name: str, value: str, hint) -> object:
 
 # the flags of the robot-side step (lerobot-rollout): PhysVLARobotActionStep's fields
 ROBOT_FLAGS: dict[str, object] = {"arm": str, "object_xyz": tuple[float, ...], "target_xyz": tuple[float, ...],
-                                  "object_key": str, "target_key": str, "velocity_cutoff_hz": float,
+                                  "object_key": str, "target_key": str, "pose_age_key": str, "velocity_cutoff_hz": float,
                                   "state_delay_s": float, "reading_noise_deg": float, "noise_snr_min": float,
                                   "arm_geometry": bool}
 

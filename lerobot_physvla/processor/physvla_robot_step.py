@@ -60,6 +60,8 @@ class PhysVLARobotActionStep(ProcessorStep):
         fps: the control rate, Hz (dt = 1 / fps for the joint velocities).
         object_xyz, target_xyz: fixed object / target points in the arm model's frame, m; or
         object_key, target_key: raw-observation keys holding them (a perception step fills them).
+        pose_age_key: a raw-observation key where the perception step reports the poses' age, control steps
+            (None: current); the corrector acts on none older than config's pose_max_age_steps.
         config: PhysVLAConfig fields (default: the `arm` preset, the approach veto alone); the action layout is
             the virtual Cartesian one (arms/joint_targets.py) and Branch B weights task-space.
         arm_geometry: the approach veto uses the arm's own gripper geometry (ArmSpec.veto_height_m,
@@ -81,6 +83,7 @@ class PhysVLARobotActionStep(ProcessorStep):
     target_xyz: list[float] | None = None
     object_key: str | None = None
     target_key: str | None = None
+    pose_age_key: str | None = None
     config: dict[str, Any] = field(default_factory=lambda: PRESETS[ARM_PRESET].to_dict())
     arm_geometry: bool = True
     velocity_cutoff_hz: float | None = 5.0
@@ -94,7 +97,7 @@ class PhysVLARobotActionStep(ProcessorStep):
         model = ArmModel(self.arm)  # unknown arm, model, joints: ArmError now
         self.source = JointStateSource(model, 1.0 / self.fps, self.object_xyz, self.target_xyz, self.object_key,
                                        self.target_key, self.velocity_cutoff_hz, self.state_delay_s,
-                                       self.reading_noise_deg)
+                                       self.reading_noise_deg, self.pose_age_key)
         self.adapter = JointTargetAdapter(model)
         cfg = PhysVLAConfig.from_dict(self.config).replace(layout=VIRTUAL, weighting="task_space")
         spec = model.spec
@@ -246,8 +249,14 @@ class PhysVLARobotActionStep(ProcessorStep):
         return (f"physvla: {self.ticks} ticks on arm {self.arm!r} (mode {c.mode}, gripper rule {c.gripper_rule}, "
                 f"place rule {c.place_rule}); "
                 f"gripper target changed on {self.changed['gripper']}, joint targets on {self.changed['joints']}; "
-                f"passed through: {fmt(self.passthrough_counts)}; Branch B off: {fmt(self.branch_b_off)}; "
+                f"passed through: {fmt(self.passed_through)}; Branch B off: {fmt(self.branch_b_off)}; "
                 f"time per tick p50 {p50:.0f} us, p99 {p99:.0f} us")
+
+    @property
+    def passed_through(self) -> Counter:
+        """Ticks passed through, by reason: this step's own (passthrough_counts: an unreadable state, a
+        non-finite target, an error) and the corrector's (missing_pose, stale_pose, singular_dynamics, ...)."""
+        return self.passthrough_counts + self.corrector.passthrough_counts
 
     def reset(self) -> None:
         """An episode starts: the state source and the corrector's memory start afresh."""
@@ -258,7 +267,8 @@ class PhysVLARobotActionStep(ProcessorStep):
 
     def get_config(self) -> dict[str, Any]:
         return {"arm": self.arm, "fps": self.fps, "object_xyz": self.object_xyz, "target_xyz": self.target_xyz,
-                "object_key": self.object_key, "target_key": self.target_key, "config": self.config,
+                "object_key": self.object_key, "target_key": self.target_key, "pose_age_key": self.pose_age_key,
+                "config": self.config,
                 "arm_geometry": self.arm_geometry,
                 "velocity_cutoff_hz": self.velocity_cutoff_hz, "state_delay_s": self.state_delay_s,
                 "reading_noise_deg": self.reading_noise_deg, "noise_snr_min": self.noise_snr_min}

@@ -36,6 +36,10 @@ class JointStateSource:
         object_xyz, target_xyz: fixed object / target positions in the model's frame, m, or None.
         object_key, target_key: observation keys holding them (3 floats, m, model frame), or the
             stem of three float keys "<key>.x", "<key>.y", "<key>.z" (lerobot robots report floats), or None.
+            A non-finite value there (the perception step lost the object) is a missing pose: the
+            corrector passes through (missing_pose).
+        pose_age_key: an observation key where the perception step reports how old the poses are, control
+            steps (its lag and the steps it has held a lost pose); None: 0, the poses are current.
         velocity_cutoff_hz: cutoff of the first-order low-pass on the finite-difference joint
             velocity, Hz (None: unfiltered).
         state_delay_s: how old the readings are when they arrive, s (bus and driver latency); the
@@ -50,7 +54,7 @@ class JointStateSource:
     def __init__(self, arm: str | ArmSpec | ArmModel, dt: float, object_xyz=None, target_xyz=None,
                  object_key: str | None = None, target_key: str | None = None,
                  velocity_cutoff_hz: float | None = 5.0, state_delay_s: float = 0.0,
-                 reading_noise_deg: float | None = None):
+                 reading_noise_deg: float | None = None, pose_age_key: str | None = None):
         self.arm = arm if isinstance(arm, ArmModel) else ArmModel(arm)
         if not (dt > 0 and math.isfinite(dt)):
             raise ArmError(f"physvla: control period dt={dt!r} s; give the robot's period (e.g. 1/30)")
@@ -60,7 +64,7 @@ class JointStateSource:
         self.dt = float(dt)
         self.object_xyz = None if object_xyz is None else np.asarray(object_xyz, dtype=np.float64).reshape(3)
         self.target_xyz = None if target_xyz is None else np.asarray(target_xyz, dtype=np.float64).reshape(3)
-        self.object_key, self.target_key = object_key, target_key
+        self.object_key, self.target_key, self.pose_age_key = object_key, target_key, pose_age_key
         self.velocity_cutoff_hz = velocity_cutoff_hz
         if not (state_delay_s >= 0 and math.isfinite(state_delay_s)):
             raise ArmError(f"physvla: state_delay_s={state_delay_s!r}; give the readings' age in seconds (>= 0)")
@@ -125,7 +129,8 @@ class JointStateSource:
         first observation, before the robot moves)."""
         need = self._keys + ([self._grip_key] if self._grip_key else []) + [
             k if k in observation else f"{k}.{c}" for k in (self.object_key, self.target_key) if k is not None
-            for c in ("x",) + (("y", "z") if k not in observation else ())]
+            for c in ("x",) + (("y", "z") if k not in observation else ())] + (
+            [self.pose_age_key] if self.pose_age_key else [])
         missing = [k for k in need if k not in observation]
         if missing:
             have = sorted(k for k in observation if isinstance(k, str))
@@ -176,7 +181,7 @@ class JointStateSource:
         if self.episode_step == 0 or not math.isfinite(self.obj_rest_z):
             self.obj_rest_z = float(obj[2])
         row = np.zeros(self._size)
-        row[f["valid"]] = 1.0 if np.isfinite(obj).all() and np.isfinite(tgt).all() else 0.0
+        row[f["valid"]] = 1.0  # a non-finite pose stays in the row: the corrector names it (missing_pose)
         row[f["episode_step"]] = self.episode_step
         row[f["dt"]] = self.dt
         row[f["eef_pos"] : f["eef_pos"] + 3] = dyn["eef_pos"]
@@ -191,7 +196,11 @@ class JointStateSource:
         row[f["M"] : f["M"] + n * n] = dyn["M"].ravel()
         row[f["tau"] : f["tau"] + n] = dyn["bias"]  # no torque sensing: the arm held where it is
         row[f["J_pos"] : f["J_pos"] + 3 * n] = dyn["J_pos"].ravel()
-        if not np.isfinite(row).all():  # a reading out of this world (inf, NaN): no state to correct from
+        if self.pose_age_key is not None:
+            row[f["pose_age"]] = float(observation[self.pose_age_key])
+        arm = np.ones(self._size, bool)
+        arm[f["obj_pos"] : f["target_pos"] + 3] = False  # the pose's fields: obj_pos, obj_rest_z, target_pos
+        if not np.isfinite(row[arm]).all():  # a reading out of this world (inf, NaN): no state to correct from
             row[f["valid"]] = 0.0
         self.episode_step += 1
         return row

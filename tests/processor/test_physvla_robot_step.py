@@ -125,3 +125,20 @@ def test_with_branch_b_and_its_guard_any_reading_gives_finite_targets_and_branch
         out = p((act(gripper=0.0), obs()))
     assert step.branch_b_off["guard_error"] == 1 and not step.corrector._b_on
     assert out["gripper.pos"] == 100.0  # the close 0.3 m from the object is still vetoed
+
+
+def test_a_lost_or_old_pose_from_perception_passes_through_with_its_reason_in_the_summary():
+    from lerobot_physvla.core.config import preset
+
+    step = PhysVLARobotActionStep(arm="so101", object_key="block", target_xyz=[0.3, -0.2, 0.0], pose_age_key="age",
+                                  config=preset("arm", pose_max_age_steps=2).to_dict())
+    p = pipeline(step)
+    far = {"block.x": 0.1, "block.y": 0.3, "block.z": 0.0}  # 0.3 m away: a close there is vetoed
+    assert p((act(), {**obs(), **far, "age": 2.0}))["gripper.pos"] == 100.0  # within the bound: corrected
+    with pytest.warns(RuntimeWarning, match="stale_pose"):
+        assert p((act(), {**obs(), **far, "age": 3.0})) == act()  # older than the bound: the policy's
+    lost = {"block.x": float("nan"), "block.y": float("nan"), "block.z": float("nan")}
+    with pytest.warns(RuntimeWarning, match="missing_pose"):
+        assert p((act(), {**obs(), **lost, "age": 0.0})) == act()
+    assert step.passed_through == {"stale_pose": 1, "missing_pose": 1}
+    assert "passed through: missing_pose 1, stale_pose 1" in step.summary()
