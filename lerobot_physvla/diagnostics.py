@@ -145,6 +145,13 @@ class _Episode:
 _T_EDGES = np.logspace(-2, 6, 401)
 
 
+def _finite_mean(values) -> float | None:
+    """The mean of the finite values (None where there are none: no episode measured it)."""
+    v = np.asarray([np.nan if x is None else x for x in values], dtype=float)
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if v.size else None
+
+
 def _time_histogram(t_us) -> np.ndarray:
     t = np.asarray(t_us, dtype=float)
     t = t[np.isfinite(t)]
@@ -415,7 +422,7 @@ class EpisodeRecorder:
         n = len(recs)
         k = sum(r["success"] for r in recs)
         lo, hi = metrics.wilson_interval(k, n)
-        mean = lambda key: float(np.nanmean([r[key] for r in recs])) if n else None  # noqa: E731
+        mean = lambda key: _finite_mean([r[key] for r in recs])  # noqa: E731
         tot = _no_stats()
         _add_stats(tot, self._done_stats)
         for ep in self.episodes:

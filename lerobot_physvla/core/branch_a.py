@@ -38,7 +38,7 @@ from lerobot_physvla.core.corrections.release_veto import RELEASE_CARRY, carried
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
 from lerobot_physvla.core.phase import PHASE_NAMES, phase_of
 from lerobot_physvla.core.state import (INVALID_STATE, MISSING_POSE, NONFINITE_ACTION, NONFINITE_STATE, OK,
-                                       STALE_POSE, field_offsets)
+                                       STALE_POSE, UNSUPPORTED_GOAL, field_offsets)
 
 _CORE = Path(__file__).resolve().parent
 # every file compiled into phase_step: this one, the FSM, the state's status codes, the corrections
@@ -133,8 +133,8 @@ def _compile(key: int):
                     else:
                         finite = False
                         break
-            if not row[o[0]] > 0.5:
-                status[i] = INVALID_STATE
+            if not row[o[0]] > 0.5:  # valid: 0 not read, -1 a task outside the model
+                status[i] = UNSUPPORTED_GOAL if row[o[0]] < -0.5 else INVALID_STATE
             elif not finite:
                 status[i] = NONFINITE_STATE
             elif not pose_finite:  # the state source has no pose of the object or the target

@@ -14,18 +14,20 @@ import numpy as np
 
 # Why the corrector passed an env's action through unchanged (status codes of its kernels).
 # missing_pose: the object's or the target's pose is not finite (the state source has none); stale_pose: the
-# pose is older than the configuration's pose_max_age_steps (the `pose_age` field).
+# pose is older than the configuration's pose_max_age_steps (the `pose_age` field); unsupported_goal: the
+# source says the task is outside what the corrector models (`valid` = UNSUPPORTED_GOAL_VALID).
 REASONS = ("ok", "invalid_state", "nonfinite_state", "nonfinite_action", "singular_dynamics", "nonfinite_output",
-           "invalid_dt", "missing_pose", "stale_pose")
+           "invalid_dt", "missing_pose", "stale_pose", "unsupported_goal")
 (OK, INVALID_STATE, NONFINITE_STATE, NONFINITE_ACTION, SINGULAR, NONFINITE_OUTPUT, INVALID_DT, MISSING_POSE,
- STALE_POSE) = range(9)
+ STALE_POSE, UNSUPPORTED_GOAL) = range(10)
+UNSUPPORTED_GOAL_VALID = -1.0  # `valid` of a state whose task has no grasp-carry-place of one object to model
 # What the safety net did to an emitted action (Corrector.guard_counts).
 GUARDS = ("none", "clipped_to_bounds", "held_nonfinite_action")
 GUARD_NONE, GUARD_CLIPPED, GUARD_HELD = range(3)
 
 # Fields in packing order: (name, shape given the arm's joint count n).
 _FIELDS = (
-    ("valid", lambda n: ()),  # 1.0 if this record was read successfully, else 0.0
+    ("valid", lambda n: ()),  # 1.0 read successfully; 0.0 not read; -1.0 the task is outside the model
     ("episode_step", lambda n: ()),  # control steps since the env's last reset (0 at reset)
     ("dt", lambda n: ()),  # control period, s
     ("eef_pos", lambda n: (3,)),  # end-effector position, m (world)

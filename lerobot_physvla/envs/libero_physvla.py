@@ -39,13 +39,15 @@ from lerobot.utils.constants import OBS_ENV_STATE, OBS_IMAGES
 
 from lerobot_physvla import compat
 from lerobot_physvla.processor.physvla_processor import EXTRA_KEY, STATE_KEY, PhysVLAStateCaptureStep
-from lerobot_physvla.core.state import field_offsets, packed_size
+from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID, field_offsets, packed_size
 from lerobot_physvla.sources.perception import Perception, PerceptionConfig
 
 N_JOINTS = 7  # the Panda of LIBERO
 ENV_STATE_DIM = 6  # object xyz, target xyz
 _BLANK_FRAME = np.zeros((64, 64, 3), np.uint8)  # what render() shows with cameras off
-_OBJ, _TGT = field_offsets(N_JOINTS)["obj_pos"], field_offsets(N_JOINTS)["target_pos"]
+_F = field_offsets(N_JOINTS)
+_OBJ, _TGT = _F["obj_pos"], _F["target_pos"]
+_WARNED_GOALS: set[str] = set()  # goals outside the model already said, once per process
 
 
 class PhysVLAStateExport(gym.Wrapper):
@@ -55,6 +57,8 @@ class PhysVLAStateExport(gym.Wrapper):
         cameras: False builds LIBERO with no renderer and returns no pixels.
         task_id: the LIBERO task id (exported in physvla_extra).
         read_failures: state reads that raised (those steps export an invalid state: no correction).
+        unsupported_goal: the task's goal in words where it is outside what the corrector models (no On / In
+            predicate: a drawer, a stove, a push); its rows export valid = -1 and pass through as unsupported_goal.
         perception: the perception model between the simulator and physvla_state (None: exact poses).
     """
 
@@ -64,6 +68,8 @@ class PhysVLAStateExport(gym.Wrapper):
         self.perception = None if perception is None or perception.exact else Perception(perception)
         self.source = None
         self.read_failures = 0  # reads of the state source that raised (those rows export valid = 0)
+        self.unsupported_goal: str | None = None
+        self._steps = 0  # control steps since the last reset: a row with no source still counts them
         self._last_action = np.zeros(7)
         inner = env.unwrapped
         self.task_id = int(getattr(inner, "task_id", -1))
@@ -106,6 +112,10 @@ class PhysVLAStateExport(gym.Wrapper):
                                   "through while it does", RuntimeWarning, stacklevel=2)
         if row is None or row.shape != (packed_size(N_JOINTS),):
             row = np.zeros(packed_size(N_JOINTS))  # valid = 0: the corrector passes through
+            row[_F["episode_step"]] = self._steps  # episodes still split where they do
+            row[_F["dt"]] = 1.0 / float(getattr(self.env.unwrapped, "control_freq", 20) or 20)
+            if self.unsupported_goal is not None:
+                row[_F["valid"]] = UNSUPPORTED_GOAL_VALID
         rs = dict(obs.get("robot_state", {}))
         rs[STATE_KEY] = row if self.perception is None else self.perception.apply(row[None])[0]
         rs[EXTRA_KEY] = np.concatenate([[self.task_id, float(success)], self._last_action])
@@ -115,14 +125,23 @@ class PhysVLAStateExport(gym.Wrapper):
         return obs
 
     def reset(self, **kwargs):
-        from lerobot_physvla.sources.robosuite import RobosuiteStateSource
+        from lerobot_physvla.sources.robosuite import RobosuiteStateSource, UnsupportedGoal
 
         if not self.cameras:
             self._build_without_renderer()
         obs, info = self.env.reset(**kwargs)
+        self._steps = 0
         try:  # a hard reset rebuilds LIBERO's model: read it afresh
             self.source = RobosuiteStateSource(self.env.unwrapped._env.env)
             self.source.reset()
+        except UnsupportedGoal as e:  # a task outside the model: said once, its rows marked, actions passed
+            self.source, self.unsupported_goal = None, e.goal
+            if e.goal not in _WARNED_GOALS:
+                _WARNED_GOALS.add(e.goal)
+                warnings.warn(f"physvla: task {self.task_id} ({getattr(self.env.unwrapped, 'task', '?')}): "
+                              f"{str(e).removeprefix('physvla: ')} (counted as unsupported_goal)", RuntimeWarning,
+                              stacklevel=2)
+            info = {**info, "physvla_unsupported_goal": e.goal}
         except Exception as e:  # noqa: BLE001 - do-no-harm: no state -> the corrector passes through
             self.source = None
             info = {**info, "physvla_state_error": repr(e)}
@@ -134,6 +153,7 @@ class PhysVLAStateExport(gym.Wrapper):
     def step(self, action):
         self._last_action = np.asarray(action, dtype=np.float64).copy()
         obs, reward, terminated, truncated, info = self.env.step(action)
+        self._steps += 1
         if self.source is not None:
             self.source.step()
         return self._augment(obs, bool(info.get("is_success", False))), reward, terminated, truncated, info

@@ -37,7 +37,7 @@ def _write_diagnostics(cfg, step) -> None:
         per_task = json.loads(info.read_text()).get("per_task", [])
         recorder.apply_env_successes({int(t["task_id"]): t["metrics"]["successes"] for t in per_task})
     path = recorder.write(cfg.output_dir, config=step.config)
-    counts = dict(step.passthrough_counts) or "none"
+    counts = ", ".join(f"{k} {v}" for k, v in recorder.summary()["passthrough"].items()) or "none"  # as the table
     logging.info("physvla: diagnostics written to %s (pass-throughs: %s)", path, counts)
     try:
         _write_report(Path(cfg.output_dir), recorder, step.cfg)
@@ -74,7 +74,8 @@ def _write_report(out: Path, recorder, pcfg, plots: int = 10) -> None:
     t = summary["overhead_us_per_env_step"]
     fmt = lambda v: "-" if v is None else f"{v:.1f}"  # noqa: E731
     extra = {
-        "success": f"{(summary['success_rate'] or 0) * 100:.0f} % [95 % CI {lo * 100:.0f}, {hi * 100:.0f}]",
+        "success": f"{(summary['success_rate'] or 0) * 100:.0f} % [95 % CI {max(lo, 0.0) * 100:.0f}, "
+                   f"{hi * 100:.0f}]",
         "approach veto fired": f"{summary['veto_fire_rate'] * 100:.1f} % of approach steps",
         "corrector overhead per env-step": f"p50 {fmt(t['p50'])} us, p99 {fmt(t['p99'])} us",
         "pass-throughs": ", ".join(f"{k} {v}" for k, v in summary["passthrough"].items()) or "none",

@@ -22,15 +22,31 @@ from lerobot_physvla.core.state import PhysState, field_offsets, packed_size
 _GOAL_PREDICATES = ("on", "in")
 
 
+class UnsupportedGoal(ValueError):
+    """A LIBERO goal with no On / In(object, target) predicate: nothing the corrector models (a grasp, a carry
+    and a place of one object). Attribute `goal`: the goal in words, e.g. "open(wooden_cabinet_1_middle_region)"."""
+
+    def __init__(self, goal: str):
+        self.goal = goal
+        super().__init__(f"physvla: the goal {goal} has no On / In(object, target) predicate: the corrector models a "
+                         "grasp, a carry and a place of one object, so this task's actions pass through unchanged")
+
+
+def goal_text(goal) -> str:
+    """A BDDL goal in words: its predicates, name(args), joined by ' & '."""
+    return " & ".join(f"{str(p[0]).lower()}({', '.join(str(a) for a in p[1:])})" for p in goal)
+
+
 def goal_object_and_target(env) -> tuple[str, str]:
-    """(object, target) named by the first binary On/In predicate of a LIBERO env's BDDL goal."""
+    """(object, target) named by the first binary On/In predicate of a LIBERO env's BDDL goal; UnsupportedGoal
+    when it has none."""
     goal = getattr(env, "parsed_problem", {}).get("goal_state")
     if not goal:
         raise ValueError("physvla: this env has no BDDL goal (parsed_problem['goal_state']); name object and target")
     for pred in goal:
         if len(pred) == 3 and str(pred[0]).lower() in _GOAL_PREDICATES:
             return str(pred[1]), str(pred[2])
-    raise ValueError(f"physvla: no On/In(object, target) predicate in the goal {goal}; name object and target")
+    raise UnsupportedGoal(goal_text(goal))
 
 
 class RobosuiteStateSource:

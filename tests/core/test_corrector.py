@@ -391,3 +391,18 @@ def test_the_shipped_default_pulls_a_settled_miss_onto_the_rim_and_the_arm_prese
             else:
                 assert o[0] < 0 < o[1], o  # toward the bowl, x +3.1 -> +1.6 cm, y -8.5 -> -4.4 cm
                 np.testing.assert_array_equal(o[2:], hover[0, 2:])
+
+
+def test_a_state_marking_its_task_outside_the_model_passes_through_as_unsupported_goal():
+    import warnings
+
+    from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID, PhysState
+
+    s = PhysState.empty(1, 7)
+    s.valid[:], s.dt[:] = UNSUPPORTED_GOAL_VALID, 0.05
+    a = np.array([[0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]])
+    c = Corrector(PhysVLAConfig())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        np.testing.assert_array_equal(c(a, s), a)
+    assert c.passthrough_counts == {"unsupported_goal": 1}

@@ -94,6 +94,22 @@ def test_pose_faults_on_the_state_export_reach_the_corrector_through_the_real_co
     assert "missing_pose" in r.stdout + r.stderr
 
 
+def test_a_goal_outside_the_model_is_one_row_per_episode_with_its_task_and_its_reason(policies, tmp_path):
+    """LIBERO-Goal tasks 0 ("open the middle drawer") and 7 ("turn on the stove") have no On / In predicate."""
+    out = tmp_path / "goal"
+    r = _eval(policies["state"], out, ["--env.type=libero_physvla", "--env.cameras=false", "--env.task=libero_goal",
+                                       "--env.task_ids=[0,7]", "--eval.n_episodes=1", "--eval.batch_size=1",
+                                       "--env.episode_length=12", "--policy.postprocess=physvla"])
+    episodes = [json.loads(line) for line in (out / "physvla_episodes.jsonl").read_text().splitlines()]
+    assert [(e["task_id"], e["steps"], e["passthrough"]) for e in episodes] == [
+        (0, 12, {"unsupported_goal": 12}), (7, 12, {"unsupported_goal": 12})]
+    diag = json.loads((out / "physvla_diagnostics.json").read_text())
+    assert diag["episodes"] == 2 and diag["passthrough"] == {"unsupported_goal": 24}
+    assert "pass-throughs: unsupported_goal 24" in r.stdout  # the table's line
+    assert "(pass-throughs: unsupported_goal 24)" in r.stderr  # and the log's, the same count
+    assert "open(wooden_cabinet_1_middle_region) has no On / In(object, target) predicate" in r.stderr
+
+
 def test_flag_absent_or_none_is_plain_lerobot_and_physvla_changes_the_rollout(policies, tmp_path):
     cam = ["--env.type=libero", "--eval.n_episodes=1", "--eval.batch_size=1", "--env.episode_length=6"]
     _eval(policies["image"], tmp_path / "plain", cam, {"PHYSVLA_DISABLE": "1"})
