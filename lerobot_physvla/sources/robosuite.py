@@ -6,6 +6,12 @@ the target. Object and target come from the LIBERO task's own goal predicate (e.
 `On(akita_black_bowl_1, plate_1)` in the BDDL file), never from hard-coded names; plain
 robosuite envs (no BDDL) name them explicitly, or give the target as a fixed world point
 (`target_xyz`, e.g. robosuite Lift's goal in the air).
+
+A goal of several predicates (LIBERO-10's `In(alphabet_soup_1, basket_1) & In(tomato_sauce_1,
+basket_1)`) is an ordered list of sub-goals: the source follows the first one not yet satisfied
+(judged by LIBERO's own predicate, `env._eval_predicate`, after every step) and switches object and
+target when it is met. A current sub-goal that is not On / In (an Open, a TurnOn) marks the rows
+valid = -1: the corrector passes through (unsupported_goal) until it is met.
 """
 
 from __future__ import annotations
@@ -17,7 +23,7 @@ import mujoco
 import numpy as np
 
 from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
-from lerobot_physvla.core.state import PhysState, field_offsets, packed_size
+from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID, PhysState, field_offsets, packed_size
 
 _GOAL_PREDICATES = ("on", "in")
 
@@ -35,6 +41,16 @@ class UnsupportedGoal(ValueError):
 def goal_text(goal) -> str:
     """A BDDL goal in words: its predicates, name(args), joined by ' & '."""
     return " & ".join(f"{str(p[0]).lower()}({', '.join(str(a) for a in p[1:])})" for p in goal)
+
+
+def subgoals(env) -> list[tuple]:
+    """A LIBERO env's BDDL goal as its ordered predicates (each a tuple: name, args...); [] without one."""
+    return [tuple(p) for p in (getattr(env, "parsed_problem", {}) or {}).get("goal_state") or []]
+
+
+def modelled(pred: tuple) -> bool:
+    """An On / In(object, target) predicate: a grasp, a carry and a place the corrector models."""
+    return len(pred) == 3 and str(pred[0]).lower() in _GOAL_PREDICATES
 
 
 def goal_object_and_target(env) -> tuple[str, str]:
@@ -57,6 +73,9 @@ class RobosuiteStateSource:
         obj_name, target_name: LIBERO object / fixture / region names, or MuJoCo body names.
         target_xyz: a fixed world target point, m (set it per episode), read instead of
             target_name's body when not None.
+        goal: the goal's predicates in order, followed one at a time where there are several (module doc);
+            () where object and target were named.
+        subgoal: the index of the predicate followed now.
         oracle: the MuJoCo dynamics oracle of the arm.
         obj_rest_z: the object's height at the last `reset()`, m.
         episode_step: control steps since the last `reset()`.
@@ -66,6 +85,7 @@ class RobosuiteStateSource:
     def __init__(self, env, obj_name: str | None = None, target_name: str | None = None, robot_index: int = 0,
                  target_xyz=None):
         self.env = env
+        follow = obj_name is None and target_name is None and target_xyz is None
         if obj_name is None or (target_name is None and target_xyz is None):
             g_obj, g_tgt = goal_object_and_target(env)
             obj_name = obj_name or g_obj
@@ -97,6 +117,9 @@ class RobosuiteStateSource:
         if self._tgt is not None:
             points.append([f["target_pos"], kind[self._tgt[0]], self._tgt[1]])
         self._points = np.array(points, dtype=np.intp)  # positions the compiled read copies
+        self.goal = tuple(subgoals(env)) if follow else ()
+        self._refs = {k: (self._resolve(p[1]), self._resolve(p[2])) for k, p in enumerate(self.goal) if modelled(p)}
+        self.subgoal = next((k for k in self._refs), 0)
         self.read_packed()  # loads the compiled read now, never inside the first control tick
 
     def _resolve(self, name: str) -> tuple[str, int]:
@@ -154,13 +177,44 @@ class RobosuiteStateSource:
         return data.xpos[i] if kind == "body" else data.site_xpos[i]
 
     def reset(self) -> None:
-        """Call after the env's reset (and settle steps): records the object's resting height."""
+        """Call after the env's reset (and settle steps): records the object's resting height and, for a
+        goal of several predicates, which one is followed."""
         self.episode_step = 0
         self.obj_rest_z = float(self._pos(self.env.sim.data._data, self._obj)[2])
+        if len(self.goal) > 1:
+            self.subgoal = -1  # judged afresh
+            self._follow()
 
     def step(self) -> None:
         """Call once per executed control step."""
         self._header[1, 1] += 1.0
+        if len(self.goal) > 1:
+            self._follow()
+
+    def _follow(self) -> None:
+        """Follow the first predicate of the goal not yet satisfied (the last once all are): its object and
+        target, the object's height now as its rest (which makes the rows valid); a predicate that is not On / In
+        marks them valid = -1."""
+        if len(self.goal) < 2:
+            return
+        k = next((i for i, p in enumerate(self.goal) if not self.env._eval_predicate(p)), len(self.goal) - 1)
+        if k == self.subgoal:
+            return
+        self.subgoal = k
+        if k in self._refs:
+            self._obj, self._tgt = self._refs[k]
+            kind = {"body": 0, "site": 1}
+            self._points = self._points.copy()  # a new array: the compiled read's arena is made per points array
+            self._points[1, 1:] = kind[self._obj[0]], self._obj[1]
+            self._points[2, 1:] = kind[self._tgt[0]], self._tgt[1]
+            self.obj_rest_z = float(self._pos(self.env.sim.data._data, self._obj)[2])
+        else:
+            self._header[0, 1] = UNSUPPORTED_GOAL_VALID  # the compiled read writes valid from the header
+
+    @property
+    def following(self) -> str:
+        """The predicate followed now, in words ("" where object and target were named)."""
+        return goal_text([self.goal[self.subgoal]]) if self.goal else ""
 
     def read_packed(self) -> np.ndarray:
         """One env's state as a flat float64 vector (PhysState.pack layout), a new array. Never

@@ -92,3 +92,33 @@ def test_short_scripted_episode_through_phys_el(libero_task0):
     assert phases[0] == Phase.APPROACH and Phase.GRASP in phases  # the expert reaches the bowl
     assert max(devs) > 0 and max(devs) <= 2 * 0.05 + 1e-12
     assert src.episode_step == 45
+
+
+def test_a_two_object_goal_follows_its_second_object_once_the_first_is_placed():
+    """LIBERO-10 task 0, "put both the alphabet soup and the tomato sauce in the basket": In & In."""
+    task = libero_sim.load_task("libero_10", 0)
+    env = libero_sim.make_libero_env(task)
+    libero_sim.reset_to_init_state(env, task, 0)
+    inner = env.env
+    src = RobosuiteStateSource(inner)
+    src.reset()
+    assert [p[1] for p in src.goal] == ["alphabet_soup_1", "tomato_sauce_1"]
+    assert src.following == "in(alphabet_soup_1, basket_1_contain_region)"
+    soup = src.read().obj_pos[0].copy()
+    # the soup put in the basket (by hand): once LIBERO's own predicate holds, the source follows the sauce
+    basket = src._pos(inner.sim.data._data, src._refs[0][1]).copy()
+    joint = inner.objects_dict["alphabet_soup_1"].joints[-1]
+    q = inner.sim.data.get_joint_qpos(joint).copy()
+    q[:3] = basket + [0.0, 0.0, 0.05]
+    inner.sim.data.set_joint_qpos(joint, q)
+    inner.sim.forward()
+    for _ in range(30):
+        env.step(np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0]))
+        src.step()
+    assert src.following == "in(tomato_sauce_1, basket_1_contain_region)"
+    st = src.read()
+    sauce = src._pos(inner.sim.data._data, src._refs[1][0])
+    assert st.valid[0] == 1.0 and np.allclose(st.obj_pos[0], sauce) and not np.allclose(st.obj_pos[0], soup)
+    assert st.obj_rest_z[0] == pytest.approx(sauce[2])  # the new object's rest, read at the switch
+    src.reset()  # a new episode from the same scene: judged afresh (the soup is still in: the sauce)
+    assert src.following == "in(tomato_sauce_1, basket_1_contain_region)"
