@@ -80,9 +80,10 @@ def field_offsets(n_joints: int) -> dict[str, int]:
 
 @functools.lru_cache(maxsize=None)
 def n_joints_from_size(size: int) -> int:
-    """Inverse of packed_size; raises if no joint count gives this length."""
+    """Inverse of packed_size (a packed state from before `pose_age` too: one float shorter, every field
+    but pose_age at the same offset); raises if no joint count gives this length."""
     for n in range(1, 64):
-        if packed_size(n) == size:
+        if packed_size(n) == size or packed_size(n) - 1 == size:
             return n
     raise ValueError(f"physvla: a packed state of length {size} matches no arm joint count")
 

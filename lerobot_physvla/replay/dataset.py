@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lerobot_physvla.core.state import upgrade
 from lerobot_physvla.replay import columns as C
 
 
@@ -136,6 +137,8 @@ def load(repo_id: str, root: str | Path | None, episodes: list[int] | None = Non
     ep_index = column(table, "episode_index")
     actions = column(table, C.ACTION).astype(np.float64)
     states = column(table, C.PHYSVLA_STATE).astype(np.float64) if C.PHYSVLA_STATE in table.column_names else None
+    if states is not None:
+        states = upgrade(states)  # recorded before pose_age existed: age 0
     success = column(table, C.SUCCESS).reshape(-1).astype(bool) if C.SUCCESS in table.column_names else None
     source = column(table, C.EPISODE) if C.EPISODE in table.column_names else None
     numeric = [k for k, f in feats.items() if k.startswith("observation.") and k != C.PHYSVLA_STATE

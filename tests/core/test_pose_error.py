@@ -73,7 +73,7 @@ def test_a_pose_older_than_the_bound_passes_through_as_stale_pose_and_one_within
             out = c(a, _state(age=age, **far))
         assert (out[0, 6] == -1.0) == vetoed, (age, bound)
         assert c.passthrough_counts == ({} if vetoed else {"stale_pose": 1})
-    assert REASONS[-2:] == ("missing_pose", "stale_pose")
+    assert {"missing_pose", "stale_pose"} <= set(REASONS)
 
 
 def test_pose_error_config_is_checked():

@@ -62,7 +62,7 @@ def test_a_state_source_that_fails_mid_episode_turns_correction_off_without_stop
     import numpy as np
     import pytest
 
-    from lerobot_physvla.core.state import packed_size
+    from lerobot_physvla.core.state import field_offsets, packed_size
     from lerobot_physvla.envs.libero_physvla import PhysVLAStateExport
     from lerobot_physvla.processor.physvla_processor import STATE_KEY
 
@@ -77,6 +77,8 @@ def test_a_state_source_that_fails_mid_episode_turns_correction_off_without_stop
     with pytest.warns(RuntimeWarning, match="sensor bus timeout"):
         obs, *_ = wrapper.step(np.zeros(7))
     row = obs["robot_state"][STATE_KEY]
-    assert row.shape == good.shape and not row.any()  # valid = 0: the corrector passes through
+    f = field_offsets(7)
+    assert row.shape == good.shape and row[f["valid"]] == 0.0  # valid = 0: the corrector passes through
+    assert row[f["episode_step"]] == 2 and not row[f["obj_pos"]:].any()  # the steps still counted, nothing read
     obs, *_ = wrapper.step(np.zeros(7))
     assert wrapper.read_failures == 2

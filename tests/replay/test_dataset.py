@@ -7,6 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
+from lerobot_physvla.core.state import packed_size
 from lerobot_physvla.replay import columns as C
 from lerobot_physvla.replay.dataset import ReplayError, load
 
@@ -17,7 +18,7 @@ def test_load_keeps_float64_state_and_episode_identity(recorded):
     data = load(REPO_ID, recorded)
     assert data.total_episodes == 2 and [e.index for e in data.episodes] == [0, 1]
     ep = data.episodes[1]
-    assert ep.states.dtype == np.float64 and ep.states.shape == (ep.frames, 112)
+    assert ep.states.dtype == np.float64 and ep.states.shape == (ep.frames, packed_size(7))
     assert list(ep.source) == [0, 0, 11] and ep.success is True
     assert ep.obs[C.STATE].shape == (ep.frames, 8) and "pick up" in ep.task
     # the packed state is stored whole in float64: the control period reads back exactly
