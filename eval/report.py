@@ -370,7 +370,7 @@ def section_error_sweep(study, rows, sec, out) -> list[str]:
     if sec.get("plot") and curves:
         _plot_error_sweep(curves, [b for b in bl.backbones if any(k[0] == b for k in curves)], list(sec["axes"]),
                           out / sec["plot"], sec.get("plot_title", study.title))
-        lines += [f"![success gain against pose error]({sec['plot']})", ""]
+        lines += [f"![{PLOT_ALT['error_sweep']}]({sec['plot']})", ""]
     return lines
 
 
@@ -424,13 +424,16 @@ def readme(study: Study, rows: list[dict], write_plots: bool = True) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
+PLOT_ALT = {"sweep": "sweep", "error_sweep": "success gain against pose error"}  # each plot's alt text
+
+
 def _no_plot(fn, write_plots: bool):
     if write_plots:
         return fn
 
     def wrapped(study, rows, sec, out):
         return fn(study, rows, {k: v for k, v in sec.items() if k != "plot"}, out) + (
-            [f"![{'sweep' if sec.get('kind') == 'sweep' else 'success and jerk'}]({sec['plot']})", ""]
+            [f"![{PLOT_ALT.get(sec.get('kind'), 'success and jerk')}]({sec['plot']})", ""]
             if sec.get("plot") else [])
 
     return wrapped
