@@ -31,7 +31,8 @@ from lerobot_physvla.core.config import PRESETS, PhysVLAConfig  # noqa: E402
 # records, 40 of them the same episodes run twice under two names with identical results, kept once)
 EPISODES = {"table2": 600, "ablation": 350, "place_bias": 60, "lift_sweep": 420, "fetch_sweep": 420, "lift_plate": 60,
             "learned": 14220, "learned_checkpoints": 550, "learned_mid": 2600, "learned_v0": 600, "learned_fixes": 200,
-            "so101_faults": 1200, "efficacy": 16895, "rim_guide_5cm": 150, "pose_error": 1700}
+            "so101_faults": 1200, "efficacy": 16895, "rim_guide_5cm": 150, "pose_error": 1700,
+            "pose_error_arms": 900}
 
 
 def test_every_study_readme_is_what_its_data_gives():
