@@ -46,7 +46,6 @@ _FIELDS = (
     # existed; a packed state without it (LEGACY) reads as age 0 (`upgrade`).
     ("pose_age", lambda n: ()),
 )
-POSE_FIELDS = ("obj_pos", "obj_rest_z", "target_pos")  # what a perception stack reports (sources/perception.py)
 
 
 @functools.lru_cache(maxsize=None)
@@ -161,8 +160,7 @@ class PhysState:
         flat = np.ascontiguousarray(flat, dtype=np.float64)
         if flat.ndim == 1:
             flat = flat[None]
-        if flat.ndim == 2 and is_legacy_size(flat.shape[1]):
-            flat = upgrade(flat)
+        flat = upgrade(flat)  # a packed state from before pose_age: age 0
         if flat.ndim != 2:
             raise ValueError(f"physvla: packed state must be (B, L), got shape {flat.shape}")
         b = flat.shape[0]

@@ -188,8 +188,7 @@ class LiberoPhysVLAEnvConfig(LiberoEnvConfig):
 
     @property
     def perception(self) -> PerceptionConfig:
-        return PerceptionConfig.both(bias_m=self.pose_bias_m, noise_m=self.pose_noise_m,
-                                     lag_steps=self.pose_lag_steps, dropout=self.pose_dropout)
+        return PerceptionConfig.from_flags(self)
 
     def __post_init__(self):
         super().__post_init__()

@@ -81,8 +81,7 @@ class ReplayArgs:
     def perception(self):
         from lerobot_physvla.sources.perception import PerceptionConfig
 
-        return PerceptionConfig.both(bias_m=self.pose_bias_m, noise_m=self.pose_noise_m, lag_steps=self.pose_lag_steps,
-                                     dropout=self.pose_dropout)
+        return PerceptionConfig.from_flags(self)
 
 
 def parse(argv: list[str]) -> tuple[ReplayArgs, object]:

@@ -80,6 +80,8 @@ class JointStateSource:
         self._keys = [f"{m}.pos" for m in spec.motors]
         self._grip_key = None if spec.gripper_motor is None else f"{spec.gripper_motor}.pos"
         self._f = field_offsets(self.arm.n_joints)
+        self._not_pose = np.ones(packed_size(self.arm.n_joints), bool)  # every field but obj_pos, obj_rest_z,
+        self._not_pose[self._f["obj_pos"] : self._f["target_pos"] + 3] = False  # target_pos (they lie together)
         self._size = packed_size(self.arm.n_joints)
         self.failures: Counter = Counter()
         # |third differences| of the readings, a ring buffer kept across episodes (the sensor's noise)
@@ -198,9 +200,7 @@ class JointStateSource:
         row[f["J_pos"] : f["J_pos"] + 3 * n] = dyn["J_pos"].ravel()
         if self.pose_age_key is not None:
             row[f["pose_age"]] = float(observation[self.pose_age_key])
-        arm = np.ones(self._size, bool)
-        arm[f["obj_pos"] : f["target_pos"] + 3] = False  # the pose's fields: obj_pos, obj_rest_z, target_pos
-        if not np.isfinite(row[arm]).all():  # a reading out of this world (inf, NaN): no state to correct from
+        if not np.isfinite(row[self._not_pose]).all():  # a reading out of this world (inf, NaN): no state to correct from
             row[f["valid"]] = 0.0
         self.episode_step += 1
         return row

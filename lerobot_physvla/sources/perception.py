@@ -77,6 +77,13 @@ class PerceptionConfig:
         return cls(PoseFaults(**faults), PoseFaults(**faults))
 
     @classmethod
+    def from_flags(cls, flags) -> PerceptionConfig:
+        """The same faults on both poses from an object with pose_bias_m, pose_noise_m, pose_lag_steps and
+        pose_dropout (the `--env.pose_*` / `--pose_*` flags)."""
+        return cls.both(bias_m=flags.pose_bias_m, noise_m=flags.pose_noise_m, lag_steps=flags.pose_lag_steps,
+                        dropout=flags.pose_dropout)
+
+    @classmethod
     def from_dict(cls, d: dict) -> PerceptionConfig:
         """{"object": {...}, "target": {...}} (PoseFaults fields each), or PoseFaults fields for both;
         ValueError naming what is unknown."""
