@@ -17,26 +17,26 @@ from lerobot_physvla.core.state import GUARD_CLIPPED, GUARD_HELD, NONFINITE_OUTP
 
 
 @njit(cache=True, error_model="numpy")
-def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, veto_geom, geo, low, high, last, has_last):
+def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, geo, low, high, last, has_last):
     """Eq. 2 with the gripper rule and clipping for every env whose status is OK; an env whose
     result is not finite gets status NONFINITE_OUTPUT. Rows of other envs are left for `_guard`.
 
     caps (4,): the authority c per phase. veto: the gripper rule `veto` sets the gripper to open
-    in full (never blended) where no grasp can close on the object. veto_geom (2,) [height,
-    reach] (m) says where that is, from geo (B, 4) [d_obj_xy, d_tgt_xy, lift, eef height above the
-    object's origin]: in the approach phase, wherever the hand is reach or more from the object
+    in full (never blended) where no grasp can close on the object; geo (B, 6) [d_obj_xy, d_tgt_xy,
+    lift, eef height above the object's origin, veto height, veto reach] (m, the last two each env's own:
+    core/geometry.py) says where that is: in the approach phase, wherever the hand is reach or more from the object
     horizontally or more than height above it (reach 0: everywhere in approach, the paper); in the
     grasp phase, where it is more than height above it (height 0: never). veto: 0 off, 1 on,
     2 on but never opening a gripper that holds: one whose last executed command (last (B, A),
     has_last (B,)) lies more than half the action range from open.
     """
-    veto_height, veto_reach = veto_geom[0], veto_geom[1]
     out = np.empty_like(a_raw)
     dev = np.zeros(a_raw.shape[0])
     for i in range(a_raw.shape[0]):
         if status[i] == OK:
             finite = True
             cap = caps[phase[i]]
+            veto_height, veto_reach = geo[i, 4], geo[i, 5]
             above = veto_height > 0.0 and geo[i, 3] > veto_height
             vetoed = veto > 0 and ((phase[i] == APPROACH and (veto_reach <= 0.0 or geo[i, 0] >= veto_reach or above))
                                    or (phase[i] == GRASP and above))

@@ -19,8 +19,9 @@ Compiled-cache safety: numba's on-disk cache checks a cached kernel against its 
 only, so a cached `phase_step` would keep running the old code of a correction edited in another
 file. Its cache key also hashes the function's closure (numba's `_index_key`), so `phase_step`
 closes over a hash of every source file it compiles in and of the assembled dispatch's source
-(`SOURCE_KEY`); editing any of them compiles it afresh. The helpers it calls are not cached
-themselves: they are compiled into it.
+(`SOURCE_KEY`); editing any of them compiles it afresh. The helpers it calls (the correction kernels, core/geometry.py) are
+not cached themselves: they are compiled into it, and their slot indices come from every correction file's
+declarations, which a cache keyed on their own file alone would not see change.
 """
 
 from __future__ import annotations
@@ -36,13 +37,15 @@ from lerobot_physvla.core.corrections.base import (D_OBJ_XY, D_TGT_XY, EEF, FING
                                                    PHASE_REF_OBJECT, POSE_MAX_AGE, TGT)
 from lerobot_physvla.core.corrections.release_veto import RELEASE_CARRY, carried_phase
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
+from lerobot_physvla.core.geometry import measured, scene_distances
 from lerobot_physvla.core.phase import PHASE_NAMES, phase_of
 from lerobot_physvla.core.state import (INVALID_STATE, MISSING_POSE, NONFINITE_ACTION, NONFINITE_STATE, OK,
                                        STALE_POSE, UNSUPPORTED_GOAL, field_offsets)
 
 _CORE = Path(__file__).resolve().parent
-# every file compiled into phase_step: this one, the FSM, the state's status codes, the corrections
-SOURCE_FILES = (Path(__file__).resolve(), _CORE / "phase.py", _CORE / "state.py",
+# every file compiled into phase_step: this one, the FSM, the state's status codes, the scene's distances, the
+# corrections
+SOURCE_FILES = (Path(__file__).resolve(), _CORE / "phase.py", _CORE / "state.py", _CORE / "geometry.py",
                 *sorted((_CORE / "corrections").glob("*.py")))
 ON_RELEASE_VETO = slots.ON["release_veto"]
 
@@ -108,25 +111,29 @@ def temporal_row(a_raw, a_phys, idx, geo, p, mem, commit):
 
 def _compile(key: int):
     @njit(cache=True, error_model="numpy")
-    def phase_step(a_raw, flat, o, idx, p, d_grasp, h_lift, mem, commit, temporal):
+    def phase_step(a_raw, flat, o, idx, p, d_grasp, h_lift, veto, mem, commit, temporal):
         """Validity, geometry, phase and Branch A (or the temporal EMA) for B envs.
 
-        flat: (B, L) packed states (pose_age last); o: offsets of [valid, eef_pos, obj_pos, obj_rest_z, target_pos];
-        idx, p: see corrections/base.py; mem: (B, N_MEM) per-env memory.
-        Returns (a_phys (B, A), phase (B,) int8, geo (B, 4) [d_obj_xy, d_tgt_xy, lift, height of the
-        end-effector above the object's origin] m, status (B,) int8).
+        flat: (B, L) packed states; o: offsets of [valid, eef_pos, obj_pos, obj_rest_z, target_pos, pose_age, scene]
+        (scene -1: the distances as configured); idx, p: see corrections/base.py; d_grasp, h_lift (m): eq. 3's;
+        veto (4,): the gripper veto's [height, reach] (m) and the configuration's (core/geometry.py);
+        mem: (B, N_MEM) per-env memory.
+        Returns (a_phys (B, A), phase (B,) int8, geo (B, 6) [d_obj_xy, d_tgt_xy, lift, height of the
+        end-effector above the object's origin, veto height, veto reach] m, status (B,) int8).
         """
         key  # noqa: B018 - read, so it is in the closure and hence in numba's cache key
         b, a_dim = a_raw.shape
         a_phys = np.empty_like(a_raw)
         phase = np.full(b, -1, np.int8)
-        geo = np.full((b, 4), np.nan)  # d_obj_xy, d_tgt_xy, lift, eef height above the object (m)
+        geo = np.full((b, 6), np.nan)  # d_obj_xy, d_tgt_xy, lift, eef height above the object, veto height, reach (m)
         status = np.zeros(b, np.int8)
         g = np.empty(N_GEO)
+        pe = np.empty_like(p)  # an env's parameters with its scene's distances (core/geometry.py)
+        veto_i = np.empty(2)
         for i in range(b):
             row = flat[i]
-            finite, pose_finite = True, True  # every field but the pose; the pose (obj_pos, obj_rest_z, target_pos)
-            for k in range(row.shape[0]):
+            finite, pose_finite = True, True  # every field but the pose and the scene; the pose (obj_pos, obj_rest_z,
+            for k in range(o[5] + 1):  # target_pos); the scene may be unmeasured (NaN), which keeps the fixed distances
                 if not np.isfinite(row[k]):
                     if o[2] <= k < o[2] + 4 or o[4] <= k < o[4] + 3:  # obj_pos and obj_rest_z lie together
                         pose_finite = False
@@ -139,7 +146,7 @@ def _compile(key: int):
                 status[i] = NONFINITE_STATE
             elif not pose_finite:  # the state source has no pose of the object or the target
                 status[i] = MISSING_POSE
-            elif row[row.shape[0] - 1] > p[POSE_MAX_AGE]:  # pose_age, the last field: older than the bound
+            elif row[o[5]] > p[POSE_MAX_AGE]:  # pose_age: older than the bound
                 status[i] = STALE_POSE
             else:
                 for k in range(a_dim):
@@ -149,24 +156,30 @@ def _compile(key: int):
             if status[i] != OK:
                 a_phys[i] = a_raw[i]
                 continue
+            q, dg = p, d_grasp
+            veto_i[0], veto_i[1] = veto[0], veto[1]
+            if measured(row, o[6]):  # the distances of this env's scene
+                dg = scene_distances(row, o[6], p, pe, veto[2:4], veto_i)
+                q = pe
             for k in range(3):
                 g[EEF + k] = row[o[1] + k]
                 g[OBJ + k] = row[o[2] + k]
                 g[TGT + k] = row[o[4] + k]
             d_obj = np.hypot(g[EEF] - g[OBJ], g[EEF + 1] - g[OBJ + 1])
             lift = g[OBJ + 2] - row[o[3]]
-            ref = OBJ if p[PHASE_REF_OBJECT] > 0.5 and lift > h_lift else EEF  # what d_tgt_xy measures from
+            ref = OBJ if q[PHASE_REF_OBJECT] > 0.5 and lift > h_lift else EEF  # what d_tgt_xy measures from
             d_tgt = np.hypot(g[ref] - g[TGT], g[ref + 1] - g[TGT + 1])
             g[D_OBJ_XY], g[D_TGT_XY], g[LIFT], g[FINGERS] = d_obj, d_tgt, lift, row[FINGERS_AT]
             geo[i, 0], geo[i, 1], geo[i, 2], geo[i, 3] = d_obj, d_tgt, lift, g[EEF + 2] - g[OBJ + 2]
-            ph = phase_of(d_obj, d_tgt, lift, d_grasp, h_lift)  # eq. 3
-            if p[RELEASE_CARRY] > 0.5 and p[ON_RELEASE_VETO] > 0.5:
-                ph = carried_phase(ph, g, mem[i], commit)
+            geo[i, 4], geo[i, 5] = veto_i[0], veto_i[1]
+            ph = phase_of(d_obj, d_tgt, lift, dg, h_lift)  # eq. 3
+            if q[RELEASE_CARRY] > 0.5 and q[ON_RELEASE_VETO] > 0.5:
+                ph = carried_phase(ph, g, q, mem[i], commit)
             phase[i] = ph
             if temporal:
-                temporal_row(a_raw[i], a_phys[i], idx, g, p, mem[i], commit)
+                temporal_row(a_raw[i], a_phys[i], idx, g, q, mem[i], commit)
             else:
-                branch_a_row(a_raw[i], a_phys[i], ph, idx, g, p, mem[i], commit)
+                branch_a_row(a_raw[i], a_phys[i], ph, idx, g, q, mem[i], commit)
         return a_phys, phase, geo, status
 
     return phase_step

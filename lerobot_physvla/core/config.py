@@ -27,6 +27,7 @@ GRIPPER_RULES: tuple[str, ...] = ("blend", "veto")
 CHUNK_MODES: tuple[str, ...] = ("all", "first")
 PLACE_RULES: tuple[str, ...] = ("decelerate", "redirect", "release_veto")
 PHASE_REFS: tuple[str, ...] = ("eef", "object")
+GEOMETRIES: tuple[str, ...] = ("fixed", "scene")  # the distances as configured, or from the scene (core/geometry.py)
 LOWPASS_RULES: tuple[str, ...] = ("off", "adaptive")
 LOWPASS_SPACES: tuple[str, ...] = ("action", "target")
 LOWPASS_ROUGH: tuple[str, ...] = ("ema", "median")  # the low-pass's roughness estimate (core/lowpass.py)
@@ -134,6 +135,9 @@ CORE_FIELDS: tuple = (
               "full where no grasp can close on the object)"),
     )),
     ("the phase machine (eq. 3)", (
+        Field("geometry", str, "fixed", "fixed", "fixed | scene: the distances below (delta_grasp_m, the veto's, the "
+              "rim guide's, the release tolerance) as set, or measured on the scene the state carries (core/geometry.py; "
+              "a state without one keeps them as set)"),
         Field("delta_grasp_m", float, 0.06, 0.06, "the grasp envelope, m"),
         Field("h_lift_m", float, 0.02, 0.02, "the lift above its rest that counts as lifted, m"),
         Field("phase_ref", str, "object", "eef", "eef | object: what the place distance measures from once the "
@@ -208,6 +212,7 @@ class _Methods:
             ("chunk", self.chunk, CHUNK_MODES),
             ("place_rule", self.place_rule, PLACE_RULES),
             ("phase_ref", self.phase_ref, PHASE_REFS),
+            ("geometry", self.geometry, GEOMETRIES),
             ("lowpass", self.lowpass, LOWPASS_RULES),
             ("lowpass_space", self.lowpass_space, LOWPASS_SPACES),
             ("lowpass_rough", self.lowpass_rough, LOWPASS_ROUGH),

@@ -388,7 +388,8 @@ class Corrector:
         # the gripper veto holds back a close only where it is sure no grasp can close: its distances + e (a
         # reach of 0, the whole approach phase, is delta_grasp)
         fp[FP_VETO:FP_LP] = ((cfg.veto_height_m + e if cfg.veto_height_m > 0 else 0.0),
-                             (cfg.veto_reach_m or (cfg.delta_grasp_m if e > 0 else 0.0)) + e)
+                             (cfg.veto_reach_m or (cfg.delta_grasp_m if e > 0 else 0.0)) + e,
+                             cfg.veto_height_m, cfg.veto_reach_m)  # as configured: core/geometry.py derives from them
         fp[FP_LP:N_FP] = (cfg.lowpass_alpha_max, cfg.lowpass_rough_lo, cfg.lowpass_rough_hi, lay.metres_per_unit,
                           cfg.lowpass_space == "target", cfg.lowpass_speed_hi, cfg.lowpass_rough == "median",
                           cfg.lowpass_lag == "compensate")
@@ -400,7 +401,10 @@ class Corrector:
         if ip is None:
             cfg, f = self.cfg, field_offsets(n)
             ip = np.zeros(N_IP, np.int64)
-            ip[IP_PHASE:IP_B] = [f[k] for k in ("valid", "eef_pos", "obj_pos", "obj_rest_z", "target_pos")]
+            ip[IP_PHASE:IP_B] = [f[k] for k in ("valid", "eef_pos", "obj_pos", "obj_rest_z", "target_pos", "pose_age",
+                                                 "scene")]
+            if cfg.geometry != "scene":
+                ip[IP_B - 1] = -1  # no scene offset: the distances as configured
             ip[IP_B:IP_N] = [f[k] for k in ("dt", "qdot", "M", "bias", "tau", "J_pos")]
             ip[IP_N], ip[IP_POS:IP_FLAGS] = n, self._pos
             if self.branch_b is not None:
@@ -476,7 +480,8 @@ class Corrector:
         t0 = time.perf_counter()
         temporal, baseline = bool(ip[IP_TEMPORAL]), bool(ip[IP_BASELINE])
         a_phys, phase, geo, status = phase_step(a_raw, flat, ip[IP_PHASE:IP_B], self._idx, self._p_a,
-                                                fp[FP_D_GRASP], fp[FP_H_LIFT], self._mem, commit, temporal)
+                                                fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_VETO:FP_LP], self._mem, commit,
+                                                temporal)
         t1 = time.perf_counter()
         w, r = np.zeros_like(a_raw), np.full((self.batch_size, 2), np.nan)
         if baseline:
@@ -487,8 +492,8 @@ class Corrector:
                 a_phys, w, r = el_gate(a_raw, a_phys, flat, ip[IP_B:IP_N], ip[IP_N], ip[IP_POS:IP_FLAGS],
                                        fp[FP_B:FP_CAPS], ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
             caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO]
-            out, dev = blend(a_raw, a_phys, phase, status, caps, self._grip, fp[FP_GRIP_OPEN], int(ip[IP_VETO]),
-                             fp[FP_VETO:FP_LP], geo, fp[FP_LOW], fp[FP_HIGH], self._last_out, self._has_last)
+            out, dev = blend(a_raw, a_phys, phase, status, caps, self._grip, fp[FP_GRIP_OPEN], int(ip[IP_VETO]), geo,
+                             fp[FP_LOW], fp[FP_HIGH], self._last_out, self._has_last)
             if ip[IP_LOWPASS]:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
                                  fp[FP_LP + 1], fp[FP_LP + 2], self._lp_mem, commit, dev, flat, ip[IP_PHASE + 1],

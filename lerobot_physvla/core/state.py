@@ -42,10 +42,21 @@ _FIELDS = (
     ("tau", lambda n: (n,)),  # applied joint torques (actuator + applied), N m
     ("J_pos", lambda n: (3, n)),  # translational Jacobian of the end-effector, m/rad
     # control steps since the object and target poses were observed (the older of the two; 0 = this step, as
-    # a simulator's exact state always is). Last, so every other field's offset is what it was before it
-    # existed; a packed state without it (LEGACY) reads as age 0 (`upgrade`).
+    # a simulator's exact state always is)
     ("pose_age", lambda n: ()),
+    # the scene's geometry (SCENE: the object's and the target's extents, the hand's; sources/geometry.py), m;
+    # NaN where the source does not measure it (the corrector then uses its fixed distances)
+    ("scene", lambda n: (len(SCENE),)),
 )
+# What `scene` holds, in order (metres): the object's larger horizontal half-extent (its radius), its narrower
+# horizontal half-extent, its top above its origin; the target's narrower horizontal half-extent; the hand's widest
+# opening, its finger pads' half width and half height.
+SCENE = ("obj_radius", "obj_half_width", "obj_top", "target_half_width", "hand_span", "pad_half_width",
+         "pad_half_height")
+# Fields appended after the first layout, oldest first, with what a packed state written before each existed
+# reads as: pose_age 0 (its source read the simulator's exact pose), scene unknown. Every earlier field keeps its
+# offset, so a shorter packed state is the current one cut after some of these (`upgrade`).
+APPENDED = (("pose_age", 0.0), ("scene", float("nan")))
 
 
 @functools.lru_cache(maxsize=None)
@@ -77,27 +88,41 @@ def field_offsets(n_joints: int) -> dict[str, int]:
     return out
 
 
+def _appended_sizes(n_joints: int) -> list[tuple[int, np.ndarray]]:
+    """(length, the fill of what it lacks) of each shorter layout a packed state was once written in, newest first."""
+    shapes = dict((name, shape(n_joints)) for name, shape in _FIELDS)
+    out, size, tail = [], packed_size(n_joints), []
+    for name, fill in reversed(APPENDED):
+        k = int(np.prod(shapes[name], dtype=int))
+        size -= k
+        tail = [np.full(k, fill)] + tail
+        out.append((size, np.concatenate(tail)))
+    return out
+
+
 @functools.lru_cache(maxsize=None)
 def n_joints_from_size(size: int) -> int:
-    """Inverse of packed_size (a packed state from before `pose_age` too: one float shorter, every field
-    but pose_age at the same offset); raises if no joint count gives this length."""
+    """Inverse of packed_size (a packed state written before some of the APPENDED fields existed too: every
+    field it has at the same offset); raises if no joint count gives this length."""
     for n in range(1, 64):
-        if packed_size(n) == size or packed_size(n) - 1 == size:
+        if packed_size(n) == size or any(k == size for k, _ in _appended_sizes(n)):
             return n
     raise ValueError(f"physvla: a packed state of length {size} matches no arm joint count")
 
 
 @functools.lru_cache(maxsize=None)
 def is_legacy_size(size: int) -> bool:
-    """A packed state written before `pose_age` existed (one float shorter than packed_size(n) for some n)."""
-    return any(packed_size(n) - 1 == size for n in range(1, 64))
+    """A packed state written before some of the APPENDED fields existed (shorter than packed_size(n) by them)."""
+    return any(k == size for n in range(1, 64) for k, _ in _appended_sizes(n))
 
 
 def upgrade(flat: np.ndarray) -> np.ndarray:
-    """A (B, L) packed state as the current layout holds it: one written before `pose_age` existed gets
-    a pose_age of 0 (its source read the simulator's exact pose); a current one is returned as it is."""
+    """A (B, L) packed state as the current layout holds it: one written before some of the APPENDED fields
+    existed gets them as APPENDED says (pose_age 0, scene NaN); a current one is returned as it is."""
     if flat.ndim == 2 and is_legacy_size(flat.shape[1]):
-        return np.concatenate([np.asarray(flat, dtype=np.float64), np.zeros((flat.shape[0], 1))], axis=1)
+        n = n_joints_from_size(flat.shape[1])
+        fill = next(f for k, f in _appended_sizes(n) if k == flat.shape[1])
+        return np.concatenate([np.asarray(flat, dtype=np.float64), np.tile(fill, (flat.shape[0], 1))], axis=1)
     return flat
 
 
@@ -125,6 +150,7 @@ class PhysState:
     tau: np.ndarray  # (B, n)
     J_pos: np.ndarray  # (B, 3, n)
     pose_age: np.ndarray  # (B,) control steps
+    scene: np.ndarray  # (B, len(SCENE)) m, NaN where not measured
 
     @property
     def batch_size(self) -> int:
@@ -136,8 +162,10 @@ class PhysState:
 
     @classmethod
     def empty(cls, batch_size: int, n_joints: int) -> PhysState:
-        """All-invalid state (the corrector passes every action through)."""
-        return cls.unpack(np.zeros((batch_size, packed_size(n_joints))))
+        """All-invalid state (the corrector passes every action through), its scene unmeasured (NaN)."""
+        flat = np.zeros((batch_size, packed_size(n_joints)))
+        flat[:, field_offsets(n_joints)["scene"]:] = np.nan
+        return cls.unpack(flat)
 
     def __setattr__(self, name, value):
         d = self.__dict__
@@ -160,7 +188,7 @@ class PhysState:
         flat = np.ascontiguousarray(flat, dtype=np.float64)
         if flat.ndim == 1:
             flat = flat[None]
-        flat = upgrade(flat)  # a packed state from before pose_age: age 0
+        flat = upgrade(flat)  # a packed state from before pose_age or scene
         if flat.ndim != 2:
             raise ValueError(f"physvla: packed state must be (B, L), got shape {flat.shape}")
         b = flat.shape[0]
@@ -170,5 +198,5 @@ class PhysState:
         return st
 
     def is_finite(self) -> np.ndarray:
-        """(B,) True where every field of the env's record is finite."""
-        return np.isfinite(self.pack()).all(axis=1)
+        """(B,) True where every field of the env's record is finite (the scene aside: NaN there says unmeasured)."""
+        return np.isfinite(self.pack()[:, : field_offsets(self.n_joints)["scene"]]).all(axis=1)

@@ -11,15 +11,16 @@ returning them (boxing a returned array costs ~0.3 us).
 Cache safety as in branch_a.py: `correct_tick` closes over a hash of every source file compiled
 into it (`TICK_SOURCE_KEY`), so editing any stage compiles it afresh.
 
-Integer parameters `ip` (int64):  [0:5] phase offsets (valid, eef_pos, obj_pos, obj_rest_z,
-target_pos), [5:11] Branch B offsets (dt, qdot, M, bias, tau, J_pos), [11] n joints, [12:15]
-position channels, [15:17] Branch B flags (el_mode, weighting), [17] gripper channel (-1: none),
-[18] temporal, [19] baseline, [20] Branch B on, [21] gripper veto, [22] low-pass on, [23:27] the
-phases where the low-pass acts (0/1 each).
+Integer parameters `ip` (int64):  [0:7] phase offsets (valid, eef_pos, obj_pos, obj_rest_z,
+target_pos, pose_age, scene: -1 where the distances are fixed), [7:13] Branch B offsets (dt, qdot, M,
+bias, tau, J_pos), [13] n joints, [14:17] position channels, [17:19] Branch B flags (el_mode,
+weighting), [19] gripper channel (-1: none), [20] temporal, [21] baseline, [22] Branch B on, [23]
+gripper veto, [24] low-pass on, [25:29] the phases where the low-pass acts (0/1 each).
 Float parameters `fp`: [0] delta_grasp (m), [1] h_lift (m), [2] cap c, [3] gripper open value,
 [4] low, [5] high (action units), [6:10] Branch B [metres_per_unit, damping, eps (N m), r0 (N m)],
-[10:14] the authority per phase, [14:16] gripper veto [height, reach] (m), [16:22] low-pass
-[alpha_max, lo, hi, metres_per_unit, 1 = target space, speed_hi].
+[10:14] the authority per phase, [14:18] gripper veto [height, reach] (m, the pose error included),
+then the configuration's [veto_height_m, veto_reach_m] (core/geometry.py), [18:26] low-pass
+[alpha_max, lo, hi, metres_per_unit, 1 = target space, speed_hi, 1 = median, 1 = compensate].
 """
 
 from __future__ import annotations
@@ -42,10 +43,10 @@ TICK_SOURCE_KEY = source_key(TICK_SOURCE_FILES, DISPATCH_SOURCE)
 
 # layout of the integer parameters (module doc)
 (IP_PHASE, IP_B, IP_N, IP_POS, IP_FLAGS, IP_GRIP, IP_TEMPORAL, IP_BASELINE, IP_BRANCH_B, IP_VETO, IP_LOWPASS,
- IP_LP_MASK, N_IP) = (0, 5, 11, 12, 15, 17, 18, 19, 20, 21, 22, 23, 27)
+ IP_LP_MASK, N_IP) = (0, 7, 13, 14, 17, 19, 20, 21, 22, 23, 24, 25, 29)
 # layout of the float parameters
 (FP_D_GRASP, FP_H_LIFT, FP_CAP, FP_GRIP_OPEN, FP_LOW, FP_HIGH, FP_B, FP_CAPS, FP_VETO, FP_LP, N_FP) = (
-    0, 1, 2, 3, 4, 5, 6, 10, 14, 16, 24)
+    0, 1, 2, 3, 4, 5, 6, 10, 14, 18, 26)
 # columns of the diagnostics buffer (B, N_DIAG + A): phase (-1 where passed through), status
 # (REASONS code), guard (GUARDS code), d_obj_xy, d_tgt_xy, lift (m), |r_EL| (N m), r_energy (W),
 # deviation max|a - a_raw| (action units), sum of Branch B weights, then the A weights
@@ -99,8 +100,8 @@ def _compile(key: int):
         temporal = ip[IP_TEMPORAL] != 0
         baseline = ip[IP_BASELINE] != 0
         a_phys, phase, geo, status = phase_step(
-            a_raw, flat, ip[IP_PHASE:IP_B], idx, p_a, fp[FP_D_GRASP], fp[FP_H_LIFT], mem, commit, temporal
-        )
+            a_raw, flat, ip[IP_PHASE:IP_B], idx, p_a, fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_VETO:FP_LP], mem, commit,
+            temporal)
         w = np.zeros_like(a_raw)
         r = np.full((b, 2), np.nan)
         if baseline:  # identity inside the safety net; phase and geometry are kept for diagnostics
@@ -112,8 +113,8 @@ def _compile(key: int):
                 a_phys, w, r = el_gate(a_raw, a_phys, flat, ip[IP_B:IP_N], ip[IP_N], ip[IP_POS:IP_FLAGS], fp[FP_B:N_FP],
                                        ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
             caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO]  # the temporal baseline is applied in full
-            out, dev = blend(a_raw, a_phys, phase, status, caps, ip[IP_GRIP], fp[FP_GRIP_OPEN], ip[IP_VETO],
-                             fp[FP_VETO:FP_LP], geo, fp[FP_LOW], fp[FP_HIGH], last, has_last)
+            out, dev = blend(a_raw, a_phys, phase, status, caps, ip[IP_GRIP], fp[FP_GRIP_OPEN], ip[IP_VETO], geo,
+                             fp[FP_LOW], fp[FP_HIGH], last, has_last)
             if ip[IP_LOWPASS] != 0:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
                                  fp[FP_LP + 1], fp[FP_LP + 2], lp_mem, commit, dev, flat, ip[IP_PHASE + 1], absolute,

@@ -18,7 +18,7 @@ import numpy as np
 
 from lerobot_physvla.core.config import FETCH_4D
 from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
-from lerobot_physvla.core.state import PhysState, packed_size
+from lerobot_physvla.core.state import SCENE, PhysState, packed_size
 
 ENV_ID = "FetchPickAndPlace-v4"
 ARM_JOINTS = tuple(
@@ -109,6 +109,7 @@ class FetchStateSource:
                 obj_rest_z=np.array([self.obj_rest_z]),
                 target_pos=np.asarray(sim.goal, dtype=np.float64)[None],
                 pose_age=np.zeros(1),
+                scene=np.full((1, len(SCENE)), np.nan),  # not measured: the corrector's fixed distances
                 **{k: v[None] for k, v in self.oracle.read(data).items()},
             )
             return st.pack()[0]

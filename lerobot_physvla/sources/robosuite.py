@@ -22,8 +22,9 @@ from collections import Counter
 import mujoco
 import numpy as np
 
+from lerobot_physvla.sources import geometry
 from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
-from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID, PhysState, field_offsets, packed_size
+from lerobot_physvla.core.state import SCENE, UNSUPPORTED_GOAL_VALID, PhysState, field_offsets, packed_size
 
 _GOAL_PREDICATES = ("on", "in")
 
@@ -104,11 +105,14 @@ class RobosuiteStateSource:
         self._size = packed_size(self.oracle.n_joints)
         self.failures: Counter = Counter()  # exception type -> count of failed reads
         f = self._f = field_offsets(self.oracle.n_joints)
-        # header fields the compiled read writes as they are: valid, episode_step, dt, obj_rest_z,
-        # then the fixed target point (3) when there is one (rows (offset, value), see pack_live_row)
+        # header fields the compiled read writes as they are: valid, episode_step, dt, obj_rest_z, the scene's
+        # geometry (SCENE, measured at reset), then the fixed target point (3) when there is one (rows (offset,
+        # value), see pack_live_row)
         self._header = np.array([[f["valid"], 0.0], [f["episode_step"], 0.0], [f["dt"], self.dt],
-                                 [f["obj_rest_z"], np.nan]] + [[f["target_pos"] + k, 0.0] for k in range(3)])
-        self._consts = self._header[:4]
+                                 [f["obj_rest_z"], np.nan]] + [[f["scene"] + k, np.nan] for k in range(len(SCENE))]
+                                + [[f["target_pos"] + k, 0.0] for k in range(3)])
+        self._n_consts = 4 + len(SCENE)
+        self._consts = self._header[: self._n_consts]
         self.obj_rest_z = float("nan")
         self.episode_step = 0
         self.target_xyz = target_xyz
@@ -169,21 +173,35 @@ class RobosuiteStateSource:
     def target_xyz(self, value) -> None:
         self._target_xyz = None if value is None else np.asarray(value, dtype=np.float64).reshape(3)
         if self._target_xyz is not None:
-            self._header[4:, 1] = self._target_xyz
-        self._consts = self._header if self._target_xyz is not None else self._header[:4]
+            self._header[self._n_consts:, 1] = self._target_xyz
+        self._consts = self._header if self._target_xyz is not None else self._header[: self._n_consts]
 
     def _pos(self, data: mujoco.MjData, ref: tuple[str, int]) -> np.ndarray:
         kind, i = ref
         return data.xpos[i] if kind == "body" else data.site_xpos[i]
 
     def reset(self) -> None:
-        """Call after the env's reset (and settle steps): records the object's resting height and, for a
-        goal of several predicates, which one is followed."""
+        """Call after the env's reset (and settle steps): records the object's resting height and its scene's
+        geometry and, for a goal of several predicates, which one is followed."""
         self.episode_step = 0
         self.obj_rest_z = float(self._pos(self.env.sim.data._data, self._obj)[2])
+        self._measure()
         if len(self.goal) > 1:
             self.subgoal = -1  # judged afresh
             self._follow()
+
+    def _measure(self) -> None:
+        """The scene's geometry (SCENE) of the object and target followed now, into the header; left unmeasured
+        (NaN: the corrector keeps its fixed distances) where it cannot be read."""
+        rows = self._header[4 : self._n_consts, 1]
+        try:
+            obj, hand = self.extent("object"), self.hand()
+            tgt = self.extent("target") if self._tgt is not None else None
+            rows[:] = (obj.radius_m, obj.half_width_m, obj.top_m, tgt.half_width_m if tgt else np.nan, hand.span_m,
+                       hand.pad_half_width_m, hand.pad_half_height_m)
+        except Exception as e:  # noqa: BLE001 - an unmeasured scene keeps the fixed distances
+            rows[:] = np.nan
+            self.failures[f"scene: {type(e).__name__}"] += 1
 
     def step(self) -> None:
         """Call once per executed control step."""
@@ -208,6 +226,7 @@ class RobosuiteStateSource:
             self._points[1, 1:] = kind[self._obj[0]], self._obj[1]
             self._points[2, 1:] = kind[self._tgt[0]], self._tgt[1]
             self.obj_rest_z = float(self._pos(self.env.sim.data._data, self._obj)[2])
+            self._measure()
         else:
             self._header[0, 1] = UNSUPPORTED_GOAL_VALID  # the compiled read writes valid from the header
 
@@ -215,6 +234,25 @@ class RobosuiteStateSource:
     def following(self) -> str:
         """The predicate followed now, in words ("" where object and target were named)."""
         return goal_text([self.goal[self.subgoal]]) if self.goal else ""
+
+    def extent(self, which: str = "object") -> geometry.Extent:
+        """The followed object's ("object") or target's ("target") box about its origin, as it stands now (read it at
+        rest: after `reset()`), metres."""
+        ref = self._obj if which == "object" else self._tgt
+        if ref is None:
+            raise ValueError(f"physvla: this source has no {which} to measure (a fixed target point has no extent)")
+        data = self.env.sim.data._data
+        kind, i = ref
+        return geometry.body_extent(self.model, data, i) if kind == "body" else geometry.site_extent(self.model, data, i)
+
+    def hand(self) -> geometry.Hand:
+        """The robot's gripper: its widest opening and finger pads (robosuite's gripper model names them)."""
+        m, grip = self.model, self.env.robots[0].gripper
+        joints = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in getattr(grip, "joints", [])]
+        important = getattr(grip, "important_geoms", {}) or {}
+        pads = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, g)
+                for k in ("left_fingerpad", "right_fingerpad") for g in important.get(k, [])]
+        return geometry.hand(m, [j for j in joints if j >= 0], [g for g in pads if g >= 0])
 
     def read_packed(self) -> np.ndarray:
         """One env's state as a flat float64 vector (PhysState.pack layout), a new array. Never

@@ -228,17 +228,18 @@ def test_release_carry_keeps_a_set_down_object_in_place_while_it_is_at_the_hand(
     from lerobot_physvla.core.corrections.base import CARRIED
     from lerobot_physvla.core.phase import GRASP, PLACE, TRANSPORT
 
+    _, _, p, _ = ctx(place_rule="release_veto", release_carry=True)
     geo, mem = np.zeros(N_GEO), np.zeros(N_MEM)
     geo[EEF:EEF + 3], geo[OBJ:OBJ + 3] = (0.1, 0.0, 1.0), (0.14, 0.0, 0.94)  # a rim grasp: 7 cm off the hand
-    assert carried_phase(GRASP, geo, mem, True) == GRASP  # never carried to place: eq. 3 as it is
-    assert carried_phase(TRANSPORT, geo, mem, True) == TRANSPORT and mem[CARRIED] == 0
-    assert carried_phase(PLACE, geo, mem, True) == PLACE and mem[CARRIED] == 1
-    assert carried_phase(GRASP, geo, mem, False) == PLACE  # set down at the hand: still placing
-    assert carried_phase(GRASP, geo, mem, True) == PLACE
+    assert carried_phase(GRASP, geo, p, mem, True) == GRASP  # never carried to place: eq. 3 as it is
+    assert carried_phase(TRANSPORT, geo, p, mem, True) == TRANSPORT and mem[CARRIED] == 0
+    assert carried_phase(PLACE, geo, p, mem, True) == PLACE and mem[CARRIED] == 1
+    assert carried_phase(GRASP, geo, p, mem, False) == PLACE  # set down at the hand: still placing
+    assert carried_phase(GRASP, geo, p, mem, True) == PLACE
     geo[OBJ:OBJ + 3] = (0.1, 0.0, 0.85)  # 15 cm below the hand: let go
-    assert carried_phase(GRASP, geo, mem, True) == GRASP and mem[CARRIED] == 0
+    assert carried_phase(GRASP, geo, p, mem, True) == GRASP and mem[CARRIED] == 0
     geo[OBJ:OBJ + 3] = (0.14, 0.0, 0.94)  # back at the hand: a new grasp, not a carried object
-    assert carried_phase(GRASP, geo, mem, True) == GRASP
+    assert carried_phase(GRASP, geo, p, mem, True) == GRASP
 
 
 def test_release_assist_opens_only_after_a_still_hold_over_a_surface_target_and_stays_open():
@@ -443,9 +444,9 @@ def test_rim_guide_pulls_a_settled_hand_onto_the_rim_along_its_own_line_only_in_
 @pytest.mark.parametrize("case", ["moving", "closing", "high", "far", "look_ahead"])
 def test_rim_guide_leaves_a_hand_that_passes_by_closes_or_is_out_of_the_zone(case):
     from lerobot_physvla.core.corrections.rim_guide import RIM_ON, RIM_SETTLE_STEPS
-    from lerobot_physvla.core.corrections.rim_guide import RIM_HEIGHT_M, RIM_REACH_M, rim_guide
+    from lerobot_physvla.core.corrections.rim_guide import RIM_HEIGHT_FIXED_M, RIM_REACH_FIXED_M, rim_guide
 
-    eef = {"high": (0.031, -0.085, 0.898 + RIM_HEIGHT_M + 0.01), "far": (0.0, -RIM_REACH_M - 0.01, 0.968)}
+    eef = {"high": (0.031, -0.085, 0.898 + RIM_HEIGHT_FIXED_M + 0.01), "far": (0.0, -RIM_REACH_FIXED_M - 0.01, 0.968)}
     idx, geo, p, mem, a = _beside(**({"eef": eef[case]} if case in eef else {}))
     _track(geo, mem, RIM_SETTLE_STEPS)
     if case == "moving":  # the hand was 2 cm away 5 steps ago: on its way somewhere

@@ -12,7 +12,8 @@ from lerobot_physvla.core.config import LIBERO_OSC_POSE, PhysVLAConfig
 from lerobot_physvla.core.corrections import CORRECTIONS, channel_index, params
 from lerobot_physvla.core.corrections.base import EEF, FINGERS, LIFT, N_GEO, N_MEM, OBJ, TGT, D_OBJ_XY, D_TGT_XY
 from lerobot_physvla.core.corrector import Corrector
-from lerobot_physvla.core.state import REASONS, PhysState, field_offsets, is_legacy_size, packed_size, upgrade
+from lerobot_physvla.core.state import (REASONS, SCENE, PhysState, field_offsets, is_legacy_size, packed_size,
+                                       upgrade)
 
 
 def _state(b=1, eef=(0.0, 0.0, 1.0), obj=(0.02, -0.01, 0.9), tgt=(0.3, 0.0, 0.9), age=0.0) -> PhysState:
@@ -25,18 +26,22 @@ def _state(b=1, eef=(0.0, 0.0, 1.0), obj=(0.02, -0.01, 0.9), tgt=(0.3, 0.0, 0.9)
     return s
 
 
-def test_pose_age_is_the_last_field_and_a_state_packed_before_it_reads_as_age_zero():
+@pytest.mark.parametrize("cut", ["before pose_age", "before scene"])
+def test_appended_fields_come_last_and_a_state_packed_before_them_reads_as_age_zero_and_no_scene(cut):
     n = 7
     f = field_offsets(n)
-    assert f["pose_age"] == packed_size(n) - 1  # every other field keeps the offset it had before
+    assert f["scene"] == packed_size(n) - len(SCENE) and f["pose_age"] == f["scene"] - 1  # others keep their offsets
     s = _state(age=4.0)
-    old = s.pack()[:, :-1]  # what a source of before wrote
+    s.scene[:] = 0.05
+    old = s.pack()[:, : f["pose_age"] if cut == "before pose_age" else f["scene"]]  # what a source of before wrote
     assert is_legacy_size(old.shape[1]) and not is_legacy_size(packed_size(n))
-    assert upgrade(old).shape == (1, packed_size(n)) and upgrade(old)[0, -1] == 0.0
-    assert PhysState.unpack(old).pose_age[0] == 0.0
+    up = upgrade(old)
+    assert up.shape == (1, packed_size(n)) and np.isnan(up[0, f["scene"]:]).all()
+    assert up[0, f["pose_age"]] == (0.0 if cut == "before pose_age" else 4.0)
+    assert PhysState.unpack(old).pose_age[0] == up[0, f["pose_age"]]
     a = np.array([[0.2, -0.1, 0.1, 0.0, 0.0, 0.0, -1.0]])
     c = Corrector(PhysVLAConfig())
-    s.pose_age[:] = 0.0
+    s.pose_age[:], s.scene[:] = up[0, f["pose_age"]], np.nan
     np.testing.assert_array_equal(c.correct_packed(a, old), Corrector(PhysVLAConfig()).correct_packed(a, s.pack()))
 
 

@@ -7,7 +7,7 @@ from lerobot_physvla.core.corrections.base import GRIPPER, GRIPPER_OPEN, Correct
 from lerobot_physvla.core.phase import APPROACH
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def approach_veto(a_raw, a_phys, idx, geo, p, mem, commit):
     """gripper <- open (the layout's open value); other channels untouched."""
     if idx[GRIPPER] >= 0:

@@ -17,7 +17,7 @@ PARAMS = ("BETA", "OFFSET_X_M", "OFFSET_Y_M", "OFFSET_Z_M")  # the blend weight;
 BETA, OFFSET_X_M, OFFSET_Y_M, OFFSET_Z_M = slots.params(__file__)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit):
     """Position channels blended toward p* with weight beta; gripper and rotation untouched."""
     beta, scale = p[BETA], p[METRES_PER_UNIT]

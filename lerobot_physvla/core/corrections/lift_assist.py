@@ -46,7 +46,7 @@ RISE_M = 0.08  # the hand rose this far above where the hold began and the objec
 REST_M = 0.01  # lift_assist_at_rest: the object no more than this below its resting height, metres
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def lift_assist(a_raw, a_phys, idx, geo, p, mem, commit):
     """z command raised to lift_assist_u once the policy has held the object still, unlifted, for
     assist_steps control steps; every other channel untouched."""
@@ -82,7 +82,7 @@ def lift_assist(a_raw, a_phys, idx, geo, p, mem, commit):
         mem[LIFT_STALL] = n + 1.0 if held else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def lift_assist_commit(phase, geo, p, mem):
     """The count starts over outside the grasp phase."""
     if phase != GRASP:

@@ -13,7 +13,7 @@ PARAMS = ("D_THRESH_M",)  # the deceleration's scale, m
 (D_THRESH_M,) = slots.params(__file__)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def place_deceleration(a_raw, a_phys, idx, geo, p, mem, commit):
     """Position channels scaled down near the target; gripper and rotation untouched."""
     ramp = min(1.0, geo[D_TGT_XY] / p[D_THRESH_M])  # eq. 5

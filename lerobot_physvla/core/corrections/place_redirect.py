@@ -23,7 +23,7 @@ PARAMS = ("REDIRECT_GAIN", "REDIRECT_TOL_M")  # the steering gain (action units 
 REDIRECT_GAIN, REDIRECT_TOL_M = slots.params(__file__)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def steer(geo, p, tol):
     """(k, ex, ey): the steering move is a_xy = k (ex, ey), with (ex, ey) = target - object (m) and
     k = gain (1 - tol / n) / scale beyond tol (m; n = |(ex, ey)|), k = 0 within it."""
@@ -33,7 +33,7 @@ def steer(geo, p, tol):
     return k, ex, ey
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def place_redirect(a_raw, a_phys, idx, geo, p, mem, commit):
     """x, y channels <- k (target - object) beyond tol (`steer`); z, rotation and gripper, and x, y
     within tol: the policy's (a_phys starts as a_raw)."""

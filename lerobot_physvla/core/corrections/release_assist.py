@@ -45,7 +45,7 @@ STILL_M = 0.003  # assist_still=hand: the hand stays within this of where the ho
 SUPPORT_M = 0.05  # the target is a surface: within this of the object's resting height, metres
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
     """Gripper opened once the policy has held the object still over the target for assist_steps."""
     g = idx[GRIPPER]
@@ -81,7 +81,7 @@ def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
         mem[STALL] = mem[STALL] + 1.0 if stalled else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def release_assist_commit(phase, geo, p, mem):
     """The count of still steps starts over outside the place phase."""
     if phase != PLACE:

@@ -29,14 +29,16 @@ from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, OB
 from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M, steer
 from lerobot_physvla.core.phase import GRASP, PLACE
 
-PARAMS = ("HOLD_STEPS", "RELEASE_CARRY")  # the longest hold, control steps; 1.0: release_carry
+# the longest hold, control steps; 1.0: release_carry; the object counts as at the hand within CARRY_REACH_M of it (3-D,
+# m: CARRY_REACH_FIXED_M, or the scene's: core/geometry.py)
+PARAMS = ("HOLD_STEPS", "RELEASE_CARRY", "CARRY_REACH_M")
 MEMORY = (("HOLD", 1), ("CARRIED", 1))  # control steps held back in a row; 1.0: the object carried to place is at the hand
-HOLD_STEPS, RELEASE_CARRY = slots.params(__file__)
+HOLD_STEPS, RELEASE_CARRY, CARRY_REACH_M = slots.params(__file__)
 HOLD, CARRIED = slots.memory(__file__)
-CARRY_REACH_M = 0.10  # release_carry: the object counts as at the hand within this of it (3-D), m
+CARRY_REACH_FIXED_M = 0.10  # release_carry: the object counts as at the hand within this of it (3-D), m
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def release_veto(a_raw, a_phys, idx, geo, p, mem, commit):
     """Gripper held closed and x, y steered toward the target while the policy opens off target."""
     g = idx[GRIPPER]
@@ -59,20 +61,20 @@ def release_veto(a_raw, a_phys, idx, geo, p, mem, commit):
         mem[HOLD] = min(mem[HOLD] + 1.0, p[HOLD_STEPS]) if miss else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def release_veto_commit(phase, geo, p, mem):
     """The count of held steps starts over outside the place phase."""
     if phase != PLACE:
         mem[HOLD] = 0.0
 
 
-@njit(cache=True, error_model="numpy")
-def carried_phase(ph, g, mem, commit):
+@njit(error_model="numpy")
+def carried_phase(ph, g, p, mem, commit):
     """release_carry: an object carried to the place phase stays in place while it is at the hand
     (within CARRY_REACH_M, 3-D), even when it is set down (its lift below h_lift would make eq. 3
     say grasp); the memory ends when the object leaves the hand."""
     dx, dy, dz = g[OBJ] - g[EEF], g[OBJ + 1] - g[EEF + 1], g[OBJ + 2] - g[EEF + 2]
-    at_hand = dx * dx + dy * dy + dz * dz < CARRY_REACH_M * CARRY_REACH_M
+    at_hand = dx * dx + dy * dy + dz * dz < p[CARRY_REACH_M] * p[CARRY_REACH_M]
     carried = at_hand and (ph == PLACE or mem[CARRIED] > 0.5)
     if commit:
         mem[CARRIED] = 1.0 if carried else 0.0
@@ -80,7 +82,8 @@ def carried_phase(ph, g, mem, commit):
 
 
 CORRECTION = Correction("release_veto", PLACE, 0, release_veto, values={
-    "HOLD_STEPS": lambda c, lay: c.hold_steps, "RELEASE_CARRY": lambda c, lay: c.release_carry},
+    "HOLD_STEPS": lambda c, lay: c.hold_steps, "RELEASE_CARRY": lambda c, lay: c.release_carry,
+    "CARRY_REACH_M": lambda c, lay: CARRY_REACH_FIXED_M},
     on=lambda c: c.place_rule == "release_veto", commit=release_veto_commit,
     pose="holds back only a release beyond its tolerance + pose_error_m",
     fields=(Field("hold_steps", int, 40, 40, "the longest a release is held back in a row, control steps"),

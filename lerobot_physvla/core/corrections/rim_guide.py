@@ -1,7 +1,8 @@
 """Approach: a pull onto the object's rim for a hand that has settled beside it, outside where a
 grasp can close on it (beyond the paper; rim_guide_m > 0).
 
-    beside:   delta_grasp <= rho < RIM_REACH_M,  p_eef_z - p_obj_z < RIM_HEIGHT_M   (approach phase)
+    beside:   delta_grasp <= rho < RIM_REACH_M,  p_eef_z - p_obj_z < RIM_HEIGHT_M   (approach phase; the fixed
+              0.14 / 0.15 m, or the scene's: core/geometry.py)
               rho = |p_eef - p_obj|_xy, horizontal, metres
     settled:  |p_eef_xy - p_eef_xy(RIM_SETTLE_STEPS steps ago)| < RIM_SETTLE_M
     open:     the policy does not command closed
@@ -44,28 +45,31 @@ from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_OPEN, M
                                                    Correction, Field)
 from lerobot_physvla.core.phase import APPROACH, GRASP
 
-PARAMS = ("RIM_GUIDE_M", "RIM_SLACK_M")  # the distance from the object's origin the hand is pulled to; the pose error it tolerates, m
+# the distance from the object's origin the hand is pulled to; the pose error it tolerates; the zone beside the object:
+# the hand within RIM_REACH_M of its origin horizontally and below RIM_HEIGHT_M above it (m; the fixed values below, or
+# the scene's: core/geometry.py)
+PARAMS = ("RIM_GUIDE_M", "RIM_SLACK_M", "RIM_REACH_M", "RIM_HEIGHT_M")
 # the hand's x, y (m) over the last RIM_SETTLE_STEPS committed steps; steps recorded so far; 1.0 while it pulls
 MEMORY = (("RIM_TRACK", 10), ("RIM_AT", 1), ("RIM_ON", 1))
-RIM_GUIDE_M, RIM_SLACK_M = slots.params(__file__)
+RIM_GUIDE_M, RIM_SLACK_M, RIM_REACH_M, RIM_HEIGHT_M = slots.params(__file__)
 RIM_TRACK, RIM_AT, RIM_ON = slots.memory(__file__)
 ON_RIM_GUIDE_GRASP = slots.P_SLOTS["ON_RIM_GUIDE_GRASP"]  # rim_guide_grasp.py goes on with this pull in the grasp phase
 RIM_SETTLE_STEPS = 5  # a hand that moved under RIM_SETTLE_M in this many control steps has settled
 assert MEMORY[0][1] == 2 * RIM_SETTLE_STEPS  # RIM_TRACK: x, y for each of them
 
-RIM_REACH_M = 0.14  # the zone beside the object: the hand within this of its origin horizontally, metres
-RIM_HEIGHT_M = 0.15  # and below this above it (a policy's hover over a bowl, ~0.135 m for the expert), metres
+RIM_REACH_FIXED_M = 0.14  # the zone beside the object: the hand within this of its origin horizontally, metres
+RIM_HEIGHT_FIXED_M = 0.15  # and below this above it (a policy's hover over a bowl, ~0.135 m for the expert), metres
 RIM_SETTLE_M = 0.01  # settled: moved under this in RIM_SETTLE_STEPS control steps, metres
 RIM_ARRIVE_M = 0.005  # rim_guide_grasp: the pull ends within this of rim_guide_m from the origin, metres
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def rim_guide(a_raw, a_phys, idx, geo, p, mem, commit):
     """x, y commanded toward the point rim_guide_m from the object's origin on the line through the
     hand, for a hand settled beside the object, outside delta_grasp (the approach phase); z and the
     gripper untouched. Called in the approach phase only; rim_track keeps the hand's history."""
     dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
-    on = (low_open and 1e-9 < rho < RIM_REACH_M and p[POSE_ERROR_M] < p[RIM_SLACK_M]
+    on = (low_open and 1e-9 < rho < p[RIM_REACH_M] and p[POSE_ERROR_M] < p[RIM_SLACK_M]
           and (mem[RIM_ON] > 0.5 or _settled(geo, mem)))
     if on:
         _pull(a_phys, idx, geo, p, dx, dy, rho)
@@ -73,17 +77,17 @@ def rim_guide(a_raw, a_phys, idx, geo, p, mem, commit):
         mem[RIM_ON] = 1.0 if on else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def _where(a_raw, idx, geo, p):
     """The hand from the object's origin (dx, dy, their length rho; metres) and whether it is low
     (under RIM_HEIGHT_M above the origin) with the policy not commanding closed."""
     dx, dy = geo[EEF] - geo[OBJ], geo[EEF + 1] - geo[OBJ + 1]
     g = idx[GRIPPER]
     closing = g >= 0 and a_raw[g] * p[GRIPPER_OPEN] < 0.0
-    return dx, dy, (dx * dx + dy * dy) ** 0.5, geo[EEF + 2] - geo[OBJ + 2] < RIM_HEIGHT_M and not closing
+    return dx, dy, (dx * dx + dy * dy) ** 0.5, geo[EEF + 2] - geo[OBJ + 2] < p[RIM_HEIGHT_M] and not closing
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def _pull(a_phys, idx, geo, p, dx, dy, rho):
     """x, y commanded toward the point rim_guide_m from the object's origin on the line through the
     hand (dx, dy: the hand from the origin, rho their length, metres), clipped to +-1 action unit."""
@@ -92,7 +96,7 @@ def _pull(a_phys, idx, geo, p, dx, dy, rho):
         a_phys[idx[k]] = min(max((goal - geo[EEF + c]) / p[METRES_PER_UNIT], -1.0), 1.0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def _settled(geo, mem) -> bool:
     """The hand moved under RIM_SETTLE_M (x, y) since RIM_SETTLE_STEPS control steps ago."""
     if mem[RIM_AT] < RIM_SETTLE_STEPS:
@@ -102,7 +106,7 @@ def _settled(geo, mem) -> bool:
     return ex * ex + ey * ey < RIM_SETTLE_M * RIM_SETTLE_M
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def rim_track(geo, mem):
     """Record the hand's x, y (every committed step, every phase) for the settle test."""
     k = RIM_TRACK + 2 * (int(mem[RIM_AT]) % RIM_SETTLE_STEPS)
@@ -110,7 +114,7 @@ def rim_track(geo, mem):
     mem[RIM_AT] += 1.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def rim_guide_commit(phase, geo, p, mem):
     """The pull ends outside the approach phase (unless rim_guide_grasp goes on with it in the grasp phase);
     the hand's x, y are recorded on every committed step, in every phase, for the settle test."""
@@ -120,7 +124,9 @@ def rim_guide_commit(phase, geo, p, mem):
 
 
 CORRECTION = Correction("rim_guide", APPROACH, 0, rim_guide, values={"RIM_GUIDE_M": lambda c, lay: c.rim_guide_m,
-                                                                         "RIM_SLACK_M": lambda c, lay: c.delta_grasp_m - c.rim_guide_m},
+                                                                         "RIM_SLACK_M": lambda c, lay: c.delta_grasp_m - c.rim_guide_m,
+                                                                         "RIM_REACH_M": lambda c, lay: RIM_REACH_FIXED_M,
+                                                                         "RIM_HEIGHT_M": lambda c, lay: RIM_HEIGHT_FIXED_M},
                         on=lambda c: c.rim_guide_m > 0.0, replaces=("approach_veto",), commit=rim_guide_commit,
                         fields=(Field("rim_guide_m", float, 0.047, 0.0, "a hand settled beside the object is pulled to "
                                       "this distance from its origin, m; 0 = off"),),

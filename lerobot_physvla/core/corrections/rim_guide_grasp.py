@@ -15,7 +15,7 @@ from lerobot_physvla.core.corrections.rim_guide import RIM_ARRIVE_M, RIM_GUIDE_M
 from lerobot_physvla.core.phase import GRASP
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def rim_guide_grasp(a_raw, a_phys, idx, geo, p, mem, commit):
     """Grasp phase: a pull latched in the approach phase (mem[RIM_ON]) goes on onto rim_guide_m while
     the hand is further than RIM_ARRIVE_M outside it, low (RIM_HEIGHT_M) and open; x, y only."""

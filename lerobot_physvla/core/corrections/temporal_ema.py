@@ -12,7 +12,7 @@ MEMORY = (("TEMPORAL_EMA", 3), ("TEMPORAL_ACTIVE", 1))  # the EMA (x, y, z, acti
 EMA, ACTIVE = slots.memory(__file__)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def temporal_ema(a_raw, a_phys, idx, geo, p, mem, commit):
     """a_pos <- alpha_temporal a_pos_prev + (1 - alpha_temporal) a_raw_pos; memory updated if commit."""
     alpha = p[ALPHA_TEMPORAL]

@@ -17,7 +17,7 @@ ALPHA_TRANSPORT, LIFT_BIAS_U = slots.params(__file__)
 EMA, ACTIVE = slots.memory(__file__)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit):
     """Position channels: EMA of (raw + lift bias on z); memory updated only if commit."""
     alpha, lift_u = p[ALPHA_TRANSPORT], p[LIFT_BIAS_U]
@@ -31,7 +31,7 @@ def transport_smoothing(a_raw, a_phys, idx, geo, p, mem, commit):
             mem[EMA + k] = e
 
 
-@njit(cache=True, error_model="numpy")
+@njit(error_model="numpy")
 def transport_commit(phase, geo, p, mem):
     """The EMA holds a value only while the previous committed step was in transport."""
     mem[ACTIVE] = 1.0 if phase == TRANSPORT else 0.0
