@@ -41,10 +41,10 @@ class Unit:
         backbone: backbone name (a key of BACKBONES, or a learned backbone's name).
         config_name, config: the configuration's hash (eval/store.py) and the corrector config
             (PhysVLAConfig.to_dict()).
-        task_id: LIBERO task id (scene "libero_spatial"); ignored by other scenes.
+        task_id: LIBERO task id (the libero_* scenes); ignored by other scenes.
         first_seed, episodes: the seed block.
         expert: ExpertConfig fields of the scripted backbone's failure modes.
-        scene: "libero_spatial" (with task_id), "lift", "lift_plate", "fetch_pick_place" or
+        scene: a LIBERO suite (with task_id: libero_spatial, libero_object, ...), "lift", "lift_plate", "fetch_pick_place" or
             "so101_pick_place" (lerobot's robot action processor on the simulated SO-101: so101_robot.py).
         policy: checkpoint directory of a learned backbone ("" = scripted expert).
     """
@@ -65,7 +65,8 @@ class Unit:
 
     @property
     def key(self) -> str:
-        where = f"t{self.task_id}" if self.scene == "libero_spatial" else self.scene
+        where = (f"t{self.task_id}" if self.scene == "libero_spatial" else
+                 f"{self.scene}_t{self.task_id}" if self.scene.startswith("libero_") else self.scene)
         return f"{self.backbone}__{self.config_name}__{where}__s{self.first_seed}-{self.first_seed + self.episodes - 1}"
 
 

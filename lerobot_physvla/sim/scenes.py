@@ -7,7 +7,8 @@ The harness (eval/harness.py), the dataset recorder (backbones/record_dataset.py
 drive LIBERO, robosuite Lift and gymnasium-robotics Fetch through it.
 
 Scenes by name (`make_scene`):
-    libero_spatial/<task id>   LIBERO-Spatial task, state-only (lerobot's 280-step horizon)
+    <suite>/<task id>          a LIBERO task (libero_spatial, libero_object, libero_goal, libero_10),
+                               state-only, with lerobot's horizon for its suite
     lift, lift_plate           robosuite Lift, and Lift + place-on-plate (lift_sim.py)
     fetch_pick_place           gymnasium-robotics FetchPickAndPlace-v4 (fetch_sim.py)
 """
@@ -47,11 +48,14 @@ class Scene(Protocol):
     def step(self, action: np.ndarray) -> tuple[bool, float]: ...
 
 
+# lerobot's episode length per LIBERO suite (lerobot/envs/libero.py: its longest training demonstration and some)
+HORIZONS = {"libero_spatial": 280, "libero_object": 280, "libero_goal": 300, "libero_10": 520, "libero_90": 400}
+
+
 class LiberoScene:
     """One LIBERO task, state-only: init state `seed % 50`, env seeded with `seed`."""
 
     layout = LIBERO_OSC_POSE
-    horizon = 280  # lerobot's LIBERO-Spatial episode length
     stop_on_success = True
     expert: dict = {}
 
@@ -59,6 +63,7 @@ class LiberoScene:
         from lerobot_physvla.sim import libero_sim
 
         self.name = f"{suite}/{task_id}"
+        self.horizon = HORIZONS.get(suite, 280)
         self.task = libero_sim.load_task(suite, task_id)
         self.env = libero_sim.make_libero_env(self.task)
         self.source = None

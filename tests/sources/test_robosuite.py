@@ -120,5 +120,35 @@ def test_a_two_object_goal_follows_its_second_object_once_the_first_is_placed():
     sauce = src._pos(inner.sim.data._data, src._refs[1][0])
     assert st.valid[0] == 1.0 and np.allclose(st.obj_pos[0], sauce) and not np.allclose(st.obj_pos[0], soup)
     assert st.obj_rest_z[0] == pytest.approx(sauce[2])  # the new object's rest, read at the switch
+    sauce_extent = src.extent("object")
+    assert st.scene[0, 0] == pytest.approx(sauce_extent.radius_m) and st.scene[0, 2] == pytest.approx(sauce_extent.top_m)
     src.reset()  # a new episode from the same scene: judged afresh (the soup is still in: the sauce)
     assert src.following == "in(tomato_sauce_1, basket_1_contain_region)"
+
+
+def test_the_scene_of_the_spatial_bowl_is_measured_and_gives_the_distances_near_the_constants(libero_task0):
+    """The bowl, the plate and the Panda's hand as the source reads them from the model; the distances the scene
+    gives (core/geometry.py) within 3 mm of the constants the shipped default was fitted with on this bowl."""
+    from lerobot_physvla.core.config import PhysVLAConfig
+    from lerobot_physvla.core.corrections import params
+    from lerobot_physvla.core.corrections.base import P_SLOTS
+    from lerobot_physvla.core.geometry import scene_distances
+    from lerobot_physvla.core.state import field_offsets
+
+    task, env = libero_task0
+    c = PhysVLAConfig()
+    for index in (0, 7):  # the bowl is round: the same in every init state
+        libero_sim.reset_to_init_state(env, task, index)
+        src = RobosuiteStateSource(env.env)
+        src.reset()
+        row = src.read_packed()
+        scene = src.read().scene[0]
+        np.testing.assert_allclose(scene[[0, 2, 3]], (0.0539, 0.0521, 0.0687), atol=1e-3)  # bowl radius, top; plate
+        np.testing.assert_allclose(scene[4:], (0.08, 0.008, 0.008))  # the Panda: 8 cm span, 8 mm pads
+        p = params(c, c.action_layout)
+        pe, veto = np.empty_like(p), np.empty(2)
+        dg = scene_distances(row, field_offsets(src.oracle.n_joints)["scene"], p, pe,
+                             np.array([c.veto_height_m, c.veto_reach_m]), veto)
+        got = (dg, veto[0], veto[1], pe[P_SLOTS["RIM_GUIDE_M"]], pe[P_SLOTS["REDIRECT_TOL_M"]])
+        want = (c.delta_grasp_m, c.veto_height_m, c.veto_reach_m, c.rim_guide_m, c.redirect_tol_m)
+        np.testing.assert_allclose(got, want, atol=0.003)
