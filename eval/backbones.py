@@ -30,19 +30,31 @@ class ExpertBackbone:
     and optionally `draw_offset` (int, default 0): the episode on init state s draws its failures
     (noise, aim error, place bias, premature close) from seed s + draw_offset. The LIBERO init
     states are few (0-39 used, 40-49 untouched), so a fresh offset gives a block of failure draws
-    that no decision has looked at on init states that have been seen."""
+    that no decision has looked at on init states that have been seen; and `teacher` ("bowl", the
+    default: sim/experts.py, the LIBERO-Spatial bowl expert; "shape": sim/shape_expert.py, which plans
+    each grasp from the object's shape and follows a goal's sub-goals: the other LIBERO suites)."""
 
     def __init__(self, scene, failure: dict):
         from lerobot_physvla.sim.experts import ExpertConfig, PickPlaceExpert
 
         failure = dict(failure)
         self.draw_offset = int(failure.pop("draw_offset", 0))
-        self.expert = PickPlaceExpert(layout=scene.layout, cfg=ExpertConfig(**{**scene.expert, **failure}))
+        self.teacher = str(failure.pop("teacher", "bowl"))
+        if self.teacher == "shape":
+            from lerobot_physvla.sim.shape_expert import ShapeExpert, ShapeExpertConfig
+
+            self.expert = ShapeExpert(layout=scene.layout, cfg=ShapeExpertConfig(**failure))
+        elif self.teacher == "bowl":
+            self.expert = PickPlaceExpert(layout=scene.layout, cfg=ExpertConfig(**{**scene.expert, **failure}))
+        else:
+            raise ValueError(f"physvla: unknown expert teacher {self.teacher!r}; choose bowl or shape")
 
     def reset(self, seed: int) -> None:
         self.expert.reset(seed=seed + self.draw_offset)
 
     def act(self, scene, state) -> np.ndarray:
+        if self.teacher == "shape":
+            return self.expert.act_source(scene.source)
         return self.expert.act(state.eef_pos[0], state.obj_pos[0], state.target_pos[0])
 
 

@@ -100,7 +100,8 @@ def task_regressions(this: list[dict], base: list[dict]) -> dict[int, tuple[int,
 
 # ---------------------------------------------------------------------------------------------- decision rules
 
-METRICS = ("net", "won_minus_lost_pooled", "pooled_lower", "jerk_ratio", "cell_successes", "degradation_ratio")
+METRICS = ("net", "won_minus_lost_pooled", "pooled_diff", "pooled_lower", "jerk_ratio", "cell_successes",
+           "degradation_ratio")
 
 
 @dataclass(frozen=True)
@@ -111,6 +112,7 @@ class Check:
         metric: what is measured on the role's blocks, candidate against `against`:
             - "net": pairs won minus pairs lost, for each backbone;
             - "won_minus_lost_pooled": the same pooled over the backbones named;
+            - "pooled_diff": the pooled paired difference in success (0-1) over the backbones named;
             - "pooled_lower": the lower end of the pooled paired difference's 95 % interval (success, 0-1);
             - "jerk_ratio": the mean per-pair jerk ratio, for each backbone;
             - "cell_successes": successes minus the other configuration's, for each backbone (noise cells);
@@ -183,13 +185,15 @@ def evaluate(check: Check, cells: dict[str, dict[str, list[dict]]], backbones: l
         return None, "no backbone of these blocks ran"
     whole = [b for b in names if complete(b, "candidate", other)]
     partial = [b for b in names if b not in whole]
-    if check.metric in ("won_minus_lost_pooled", "pooled_lower"):
+    if check.metric in ("won_minus_lost_pooled", "pooled_diff", "pooled_lower"):
         if partial:
             return None, "incomplete: " + ", ".join(partial)
         pool = pooled([paired(cells[b]["candidate"], cells[b][other]) for b in whole])
         if check.metric == "won_minus_lost_pooled":
             v = pool["won"] - pool["lost"]
             return check.bounds_ok(v), f"{pool['won']} won / {pool['lost']} lost over {pool['n']} pairs"
+        if check.metric == "pooled_diff":
+            return check.bounds_ok(pool["diff"]), f"{pool['diff'] * 100:+.1f} pp over {pool['n']} pairs"
         return check.bounds_ok(pool["ci"][0]), (f"{pool['diff'] * 100:+.1f} pp [{pool['ci'][0] * 100:+.1f}, "
                                                f"{pool['ci'][1] * 100:+.1f}] over {pool['n']} pairs")
     if check.metric == "cell_successes":

@@ -22,6 +22,14 @@ Grasp rule (`plan_grasp`; widths are of the object's footprint, the hand's span 
                    (of -y, +y, -x, +x, in that order of preference) that reaches least far from the
                    object's origin (a mug's handle side reaches further), fingers closing across the
                    wall (a quarter turn of the wrist for the x sides).
+    Neighbours: the rule's grasp is one of a few candidates (`grasp_candidates`: a slide of up to long/2 - 2 cm
+                   along an elongated object's long side, the other rim sides, a quarter turn on a round
+                   object), each costed by how much of the hand's footprint (palm 21 x 6.4 cm, fingers) would
+                   sit over a taller neighbour (LIBERO's other objects and fixtures, `scene_obstacles`) at the
+                   pick and at the place (`hand_overlap`), plus a small preference for the rule's own grasp:
+                   the cheapest is taken (e.g. the bowl's +y rim when a cabinet stands on the plate's -y side).
+                   The approach comes in with the finger tips 2 cm above every neighbour within 15 cm, then
+                   descends straight down (a low approach sweeps a milk carton off its place).
 Place rule (`plan_place`): the object's origin over the target's centre (a region site's centre, a body's
     origin: LIBERO's On / In predicates test the object's origin), its bottom `place_clear_m` above the
     target's support top, then released. The support top is the highest of the target's own top and the
@@ -172,23 +180,79 @@ class Grasp:
     yaw: float | None
 
 
-def plan_grasp(shape: Shape, hand: Hand, cfg: ShapeExpertConfig | None = None) -> Grasp:
-    """The grasp of the module's rule for an object of `shape` (about its origin) and a hand of `hand`."""
+# The Panda hand's footprint about its grasp site, in the hand's frame (x: along the fingers' closing direction,
+# y: across it), metres: (x lo, x hi, y half width, height of its lowest point above the site); measured from
+# robosuite's Panda gripper collision geoms, fingers open.
+HAND_PARTS = ((-0.105, 0.105, 0.032, 0.026), (-0.068, -0.032, 0.011, -0.012), (0.032, 0.068, 0.011, -0.012))
+
+
+def grasp_candidates(shape: Shape, hand: Hand, cfg: ShapeExpertConfig | None = None,
+                     current_yaw: float = np.pi / 2) -> list[tuple[Grasp, float]]:
+    """The grasps the module's rule allows for an object of `shape`, each with its preference cost (lower first):
+    the rule's own grasp costs 0; a slide along an elongated object's long side, the other rim sides, or a quarter
+    turn of the wrist on a round object cost a little (they are taken only to keep the hand off its neighbours)."""
     c = cfg or ShapeExpertConfig()
+    out: list[tuple[Grasp, float]] = []
     if shape.narrow_m <= hand.span_m - 2 * c.fit_margin_m:
         mid = (shape.bottom_m + shape.top_m) / 2
         z = max(mid, shape.top_m - c.grasp_depth_m)
         z = min(max(z, shape.bottom_m + c.table_clear_m), shape.top_m)
-        yaw = shape.narrow_yaw if shape.ratio >= c.elongated_ratio else None
-        return Grasp("centre", (shape.centre_xy[0], shape.centre_xy[1], z), yaw)
+        cx, cy = shape.centre_xy
+        if shape.ratio >= c.elongated_ratio:
+            yaw = shape.narrow_yaw
+            along = np.array([-np.sin(yaw), np.cos(yaw)])  # the long side
+            smax = max(0.0, shape.long_m / 2 - 0.02)
+            for s in np.linspace(-smax, smax, 5) if smax > 0 else [0.0]:
+                out.append((Grasp("centre", (cx + along[0] * s, cy + along[1] * s, z), yaw), 10.0 * abs(s)))
+        else:
+            out.append((Grasp("centre", (cx, cy, z), None), 0.0))
+            out.append((Grasp("centre", (cx, cy, z), _wrap_half_turn(current_yaw + np.pi / 2) % np.pi), 0.3))
+        return out
     radius = (shape.narrow_m / 2) - hand.pad_half_width_m
-    sides = ((0.0, -1.0), (0.0, 1.0), (-1.0, 0.0), (1.0, 0.0))  # -y, +y, -x, +x
-    k = int(np.argmin(np.asarray(shape.reach) + 1e-3 * np.arange(4)))  # ties: the first, -y
-    s = np.asarray(sides[k])
-    xy = np.asarray(shape.centre_xy) + s * radius
-    yaw = None if s[0] == 0 else 0.0  # the Panda's fingers close along world y at rest
     z = max(shape.top_m - c.rim_depth_m, shape.bottom_m + c.table_clear_m)
-    return Grasp("rim", (float(xy[0]), float(xy[1]), z), yaw)
+    reach = np.asarray(shape.reach)
+    for k, (sx, sy) in enumerate(((0.0, -1.0), (0.0, 1.0), (-1.0, 0.0), (1.0, 0.0))):  # -y, +y, -x, +x
+        xy = np.asarray(shape.centre_xy) + np.array([sx, sy]) * radius
+        yaw = None if sx == 0 else 0.0  # the Panda's fingers close along world y at rest
+        cost = 0.01 * k + (0.3 if sx != 0 else 0.0) + (5.0 if reach[k] > reach.min() + 0.008 else 0.0)
+        out.append((Grasp("rim", (float(xy[0]), float(xy[1]), z), yaw), cost))
+    return out
+
+
+def hand_overlap(centre: np.ndarray, yaw: float, site_z: float, obstacles) -> int:
+    """How many sample points of the hand's footprint (HAND_PARTS) at grasp site `centre` (x, y), closing direction
+    `yaw`, site height site_z fall inside an obstacle box ((x lo, y lo), (x hi, y hi), top z) whose top is above the
+    part's bottom."""
+    if not obstacles:
+        return 0
+    u = np.array([np.cos(yaw), np.sin(yaw)])
+    v = np.array([-u[1], u[0]])
+    n = 0
+    for x0, x1, hw, dz in HAND_PARTS:
+        xs, ys = np.linspace(x0, x1, 9 if x1 - x0 > 0.1 else 3), np.linspace(-hw, hw, 3)
+        pts = centre[None, :2] + xs.repeat(len(ys))[:, None] * u + np.tile(ys, len(xs))[:, None] * v
+        for lo, hi, top in obstacles:
+            if top > site_z + dz:
+                n += int(np.all((pts > np.asarray(lo) - 0.005) & (pts < np.asarray(hi) + 0.005), axis=1).sum())
+    return n
+
+
+def plan_grasp(shape: Shape, hand: Hand, cfg: ShapeExpertConfig | None = None, obstacles=(),
+               obj_pos=(0.0, 0.0, 0.0), place_pos=None, current_yaw: float = np.pi / 2) -> Grasp:
+    """The grasp of the module's rule for an object of `shape` (about its origin) and a hand of `hand`: among
+    `grasp_candidates`, the one whose hand footprint overlaps the obstacles least, at the pick (object at obj_pos)
+    and at the place (object's origin at place_pos, if given), then the preferred one."""
+    best, best_cost = None, np.inf
+    for g, pref in grasp_candidates(shape, hand, cfg, current_yaw):
+        yaw = current_yaw if g.yaw is None else g.yaw
+        cost = pref
+        for at in (obj_pos, place_pos):
+            if at is not None:
+                p = np.asarray(at, dtype=float) + np.asarray(g.offset)
+                cost += hand_overlap(p[:2], yaw, p[2], obstacles)
+        if cost < best_cost:
+            best, best_cost = g, cost
+    return best
 
 
 @dataclass(frozen=True)
@@ -203,6 +267,7 @@ class Plan:
         support_top_z: the target's support top relative to the target's origin, m.
         carry_z: the object's bottom while carried, relative to the target's origin, m (at least).
         place_yaw: world yaw of the closing direction while placing (an elongated region), or None.
+        approach_z: the grasp site's height above the object's origin on the approach (clears the neighbours).
     """
 
     grasp: Grasp
@@ -212,6 +277,7 @@ class Plan:
     support_top_z: float
     carry_z: float
     place_yaw: float | None = None
+    approach_z: float | None = None
 
 
 def plan_place(obj: Shape, target: Shape, support_top_z: float, grasp: Grasp,
@@ -227,14 +293,26 @@ def plan_place(obj: Shape, target: Shape, support_top_z: float, grasp: Grasp,
 
 
 def plan_for(obj: Shape, target: Shape, support_top_z: float, hand: Hand, cfg: ShapeExpertConfig | None = None,
-             obj_yaw: float = 0.0, obj_rest_bottom_z: float = -np.inf) -> Plan:
+             obj_yaw: float = 0.0, obj_rest_bottom_z: float = -np.inf, obstacles=(), obj_pos=None, target_pos=None,
+             current_yaw: float = np.pi / 2) -> Plan:
     """The whole plan. Heights of the target side are relative to the target's origin; obj_rest_bottom_z: the
-    object's resting bottom relative to the target's origin (the carry clears it too)."""
+    object's resting bottom relative to the target's origin (the carry clears it too). obstacles: the other bodies'
+    footprint boxes ((x lo, y lo), (x hi, y hi), top z), world; with obj_pos and target_pos (world) the grasp keeps
+    the hand off them at the pick and at the place (`plan_grasp`)."""
     c = cfg or ShapeExpertConfig()
-    grasp = plan_grasp(obj, hand, c)
+    place, _ = plan_place(obj, target, support_top_z, Grasp("centre", (0.0, 0.0, 0.0), None), c)
+    place_pos = None if target_pos is None else np.asarray(target_pos, dtype=float) + np.asarray(place)
+    grasp = plan_grasp(obj, hand, c, obstacles if obj_pos is not None else (),
+                       obj_pos if obj_pos is not None else (0.0, 0.0, 0.0), place_pos, current_yaw)
     place, yaw = plan_place(obj, target, support_top_z, grasp, c)
     carry = max(support_top_z, obj_rest_bottom_z) + c.carry_clear_m
-    return Plan(grasp, obj, obj_yaw, place, support_top_z, carry, yaw)
+    approach = grasp.offset[2] + c.hover_m
+    if obj_pos is not None:  # the finger tips 2 cm above every neighbour within 15 cm
+        near = [top for lo, hi, top in obstacles
+                if np.all(np.asarray(obj_pos[:2]) > np.asarray(lo) - 0.15) and np.all(np.asarray(obj_pos[:2]) < np.asarray(hi) + 0.15)]
+        if near:
+            approach = max(approach, max(near) - float(obj_pos[2]) + 0.012 + 0.02)
+    return Plan(grasp, obj, obj_yaw, place, support_top_z, carry, yaw, approach)
 
 
 def _wrap_half_turn(a: float) -> float:
@@ -257,7 +335,7 @@ class ShapeExpert(PickPlaceExpert):
         self._refs = None  # (obj ref, target ref, sub-goal index) planned for, from act_source
         self._pending = False  # the source moved on to another sub-goal: finish this place first
         self._retreat_z = None
-        self._carry_eef_z = None
+        self._hold_yaw = None
 
     def set_plan(self, plan: Plan) -> None:
         """Plan the next pick and place and start it from the approach."""
@@ -265,6 +343,7 @@ class ShapeExpert(PickPlaceExpert):
         self.stage, self.count = 0, 0
         self._best, self._stall = np.inf, 0
         self._lift_z = None
+        self._hold_yaw = None
         self._retreat_z = None
 
     # ---- the state machine ----------------------------------------------------------------------------
@@ -300,7 +379,9 @@ class ShapeExpert(PickPlaceExpert):
         place = eef_pos + (obj_goal - obj_pos)
         drz, yaw_err = 0.0, 0.0
         if name == "hover_obj":
-            d, err = self._move(eef_pos, grasp + np.array([0.0, 0.0, c.hover_m]))
+            above = np.array([grasp[0], grasp[1], obj_pos[2] + (p.approach_z if p.approach_z is not None
+                                                                 else p.grasp.offset[2] + c.hover_m)])
+            d, err = self._move(eef_pos, above)
             drz, yaw_err = self._turn(eef_yaw, g_yaw)
             done = np.linalg.norm((grasp - eef_pos)[:2]) < c.tol_m and yaw_err < c.rot_tol_rad
             if self.close_early and np.linalg.norm((grasp - eef_pos)[:2]) < 0.12:
@@ -315,6 +396,7 @@ class ShapeExpert(PickPlaceExpert):
             done = self.count >= c.close_steps
         elif name == "lift":  # the object's bottom to the carry height (fixed when the lift starts)
             if self._lift_z is None:
+                self._hold_yaw = eef_yaw if np.isfinite(eef_yaw) else None  # the wrist holds this while carrying
                 need = target_pos[2] + p.carry_z - (obj_pos[2] + p.shape.bottom_m)
                 self._lift_z = eef_pos[2] + max(need, c.hover_m / 2)
             d, err = self._move(eef_pos, np.array([*eef_pos[:2], self._lift_z]))
@@ -323,12 +405,12 @@ class ShapeExpert(PickPlaceExpert):
             goal = place + up
             goal[2] = max(goal[2], self._lift_z if self._lift_z is not None else goal[2])
             d, _ = self._move(eef_pos, goal, fast=c.no_decel)
-            drz, yaw_err = self._turn(eef_yaw, p.place_yaw)
+            drz, yaw_err = self._turn(eef_yaw, p.place_yaw if p.place_yaw is not None else self._hold_yaw)
             grip = close
             done = np.linalg.norm((obj_goal - obj_pos)[:2]) < c.tol_m and yaw_err < c.rot_tol_rad
         elif name == "lower":
             d, err = self._move(eef_pos, place, fast=c.no_decel)
-            drz, _ = self._turn(eef_yaw, p.place_yaw)
+            drz, _ = self._turn(eef_yaw, p.place_yaw if p.place_yaw is not None else self._hold_yaw)
             grip, done = close, err < c.tol_m
         elif name == "release" and not c.release:  # hold the object at the target
             d, _ = self._move(eef_pos, place)
@@ -413,7 +495,9 @@ class ShapeExpert(PickPlaceExpert):
         tgt_pos, _ = _pose(data, tgt_ref)
         support = support_top(model, data, tgt_ref) - tgt_pos[2]
         rest_bottom = obj_pos[2] + obj.bottom_m - tgt_pos[2]
-        self.set_plan(plan_for(obj, tgt, support, source.hand(), self.cfg, obj_yaw, rest_bottom))
+        obstacles = scene_obstacles(model, data, source.env, skip=(obj_ref[1],) if obj_ref[0] == "body" else ())
+        self.set_plan(plan_for(obj, tgt, support, source.hand(), self.cfg, obj_yaw, rest_bottom, obstacles,
+                               obj_pos, tgt_pos, self._eef(source)[1]))
         self._refs = (obj_ref, tgt_ref, getattr(source, "subgoal", 0))
 
 
@@ -479,3 +563,18 @@ def support_top(model, data, ref) -> float:
             except ValueError:
                 pass
     return float(top)
+
+
+def scene_obstacles(model, data, env, skip=()) -> list[tuple]:
+    """Footprint boxes ((x lo, y lo), (x hi, y hi), top z), world, of the LIBERO scene's objects and fixtures
+    (env.obj_body_id) but the bodies in `skip` (the object being picked)."""
+    out = []
+    for bid in dict(getattr(env, "obj_body_id", {}) or {}).values():
+        if int(bid) in skip:
+            continue
+        try:
+            pts = body_points(model, data, int(bid)) + data.xpos[int(bid)]
+        except ValueError:
+            continue
+        out.append((tuple(pts[:, :2].min(0)), tuple(pts[:, :2].max(0)), float(pts[:, 2].max())))
+    return out

@@ -153,6 +153,10 @@ def test_a_rule_fails_on_a_complete_cell_and_waits_on_an_incomplete_one():
     assert cmp.evaluate(net, {"b": bad, "c": partial}, ["b", "c"])[0] is False  # decided whatever c gives
     lower = cmp.Check.from_dict({"metric": "pooled_lower", "against": "reference", "above": 0})
     assert cmp.evaluate(lower, {"a": good}, ["a"])[0] is False  # +0 pp [+0, +0]: not above 0
+    gain = cmp.Check.from_dict({"metric": "pooled_diff", "against": "reference", "min": 0.10})
+    helped = {"candidate": _rows([True] * 4), "reference": _rows([True, True, True, False]), "n": 4}
+    assert cmp.evaluate(gain, {"a": helped}, ["a"]) == (True, "+25.0 pp over 4 pairs")
+    assert cmp.evaluate(gain, {"a": good}, ["a"])[0] is False  # +0 pp: below +10
     with pytest.raises(ValueError, match="unknown metric"):
         cmp.Check.from_dict({"metric": "vibes"})
 
