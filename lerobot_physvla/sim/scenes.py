@@ -53,7 +53,9 @@ HORIZONS = {"libero_spatial": 280, "libero_object": 280, "libero_goal": 300, "li
 
 
 class LiberoScene:
-    """One LIBERO task, state-only: init state `seed % 50`, env seeded with `seed`."""
+    """One LIBERO task, state-only: init state `seed % 50`, env seeded with `seed`. A task whose goal the corrector
+    does not model (no On / In predicate: an Open, a TurnOn) has no state source: `read()` gives a state marked
+    valid = -1 (the corrector passes through, unsupported_goal) and `unsupported_goal` names the goal."""
 
     layout = LIBERO_OSC_POSE
     stop_on_success = True
@@ -67,23 +69,38 @@ class LiberoScene:
         self.task = libero_sim.load_task(suite, task_id)
         self.env = libero_sim.make_libero_env(self.task)
         self.source = None
+        self.unsupported_goal = ""
         self.raw_obs: dict = {}
+        self._steps = 0
 
     def reset(self, seed: int) -> None:
         from lerobot_physvla.sim import libero_sim
-        from lerobot_physvla.sources.robosuite import RobosuiteStateSource
+        from lerobot_physvla.sources.robosuite import RobosuiteStateSource, UnsupportedGoal
 
         self.raw_obs = libero_sim.reset_to_init_state(self.env, self.task, seed)
-        if self.source is None:
-            self.source = RobosuiteStateSource(self.env.env)
-        self.source.reset()
+        self._steps = 0
+        if self.source is None and not self.unsupported_goal:
+            try:
+                self.source = RobosuiteStateSource(self.env.env)
+            except UnsupportedGoal as e:
+                self.unsupported_goal = e.goal
+        if self.source is not None:
+            self.source.reset()
 
     def read(self) -> PhysState:
-        return self.source.read()
+        if self.source is not None:
+            return self.source.read()
+        from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID
+
+        st = PhysState.empty(1, len(self.env.env.robots[0].robot_joints))
+        st.valid[:], st.episode_step[:], st.dt[:] = UNSUPPORTED_GOAL_VALID, self._steps, 1.0 / self.env.env.control_freq
+        return st
 
     def step(self, action: np.ndarray) -> tuple[bool, float]:
         self.raw_obs, reward, _, _ = self.env.step(np.asarray(action, dtype=np.float64))
-        self.source.step()
+        self._steps += 1
+        if self.source is not None:
+            self.source.step()
         return bool(self.env.check_success()), float(reward)
 
     def policy_observation(self, state: PhysState) -> dict[str, np.ndarray]:

@@ -64,3 +64,30 @@ def test_an_episode_does_not_depend_on_the_one_before(libero_task0):
     np.random.seed(12345)  # disturb the global RNG as other code would
     trajectory(3)
     np.testing.assert_array_equal(trajectory(2), first)
+
+
+def test_a_task_outside_the_model_gives_unsupported_goal_rows_and_every_action_passes_through():
+    """LIBERO-Goal task 0 ("open the middle drawer of the cabinet"): no On / In predicate. The scene the harness
+    and `lerobot-physvla-replay --mode=resim` drive has no state source there; its rows say unsupported_goal, count
+    the steps, and the shipped default changes no action."""
+    import warnings
+
+    from lerobot_physvla.core.config import PhysVLAConfig
+    from lerobot_physvla.core.corrector import Corrector
+    from lerobot_physvla.sim.scenes import make_scene
+
+    scene = make_scene("libero_goal/0")
+    scene.reset(3)
+    assert scene.unsupported_goal == "open(wooden_cabinet_1_middle_region)" and scene.horizon == 300
+    c = Corrector(PhysVLAConfig(geometry="scene"))
+    rng = np.random.default_rng(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for t in range(4):
+            st = scene.read()
+            assert st.episode_step[0] == t
+            a = rng.uniform(-1, 1, (1, 7))
+            out = c(a, st)
+            np.testing.assert_array_equal(out, a)
+            scene.step(out[0])
+    assert dict(c.passthrough_counts) == {"unsupported_goal": 4}
