@@ -1,7 +1,11 @@
-"""Record scripted-expert rollouts on LIBERO-Spatial into a local LeRobotDataset (v3), state only.
+"""Record scripted-expert rollouts on a LIBERO suite into a local LeRobotDataset (v3), state only.
 
-    .venv/bin/python backbones/record_dataset.py [--out outputs/datasets/physvla_libero_spatial]
+    .venv/bin/python backbones/record_dataset.py [--suite libero_spatial] [--out outputs/datasets/physvla_<suite>]
         [--seeds 10-39] [--tasks 0-9] [--dart-sigma 0.1,0.3] [--workers 2]
+
+The teacher: LIBERO-Spatial's bowl expert (sim/experts.py) on libero_spatial, the shape-planning expert
+(sim/shape_expert.py) on the other suites (`--teacher` to choose). Each suite's horizon is lerobot's
+(sim/scenes.py HORIZONS).
 
 Each frame holds what a state-based policy sees in `lerobot-eval --env.type=libero_physvla
 --env.cameras=false` (scenes.LiberoScene.policy_observation):
@@ -35,7 +39,6 @@ from tqdm import tqdm
 from lerobot_physvla.replay.record import parse_range  # noqa: F401 - also this script's API
 
 FPS = 20  # LIBERO's control frequency
-HORIZON = 280
 STATE_NAMES = ["eef_x", "eef_y", "eef_z", "eef_ax", "eef_ay", "eef_az", "finger_l", "finger_r"]
 ENV_NAMES = ["obj_x", "obj_y", "obj_z", "tgt_x", "tgt_y", "tgt_z"]
 ACTION_NAMES = ["dx", "dy", "dz", "drx", "dry", "drz", "gripper"]
@@ -46,23 +49,26 @@ FEATURES = {
 }
 
 
-def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0) -> list[dict]:
+def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0, suite: str = "libero_spatial",
+            teacher: str = "bowl") -> list[dict]:
     """Expert episodes of one task; returns the successful ones as arrays (runs in a worker)."""
     from lerobot_physvla.sim.experts import PickPlaceExpert
     from lerobot_physvla.sim.scenes import LiberoScene
+    from lerobot_physvla.sim.shape_expert import ShapeExpert
 
-    scene = LiberoScene("libero_spatial", task_id)
-    expert = PickPlaceExpert()
+    scene = LiberoScene(suite, task_id)
+    expert = ShapeExpert() if teacher == "shape" else PickPlaceExpert()
     episodes = []
     for seed in seeds:
         scene.reset(seed)
         expert.reset(seed=seed)
         rng = np.random.default_rng(10_000 + seed + 1_000_000 * level)  # level 0: the original draws
         obs_s, obs_e, acts, success = [], [], [], False
-        for _ in range(HORIZON):
+        for _ in range(scene.horizon):
             st = scene.read()
             o = scene.policy_observation(st)
-            a = expert.act(st.eef_pos[0], st.obj_pos[0], st.target_pos[0])
+            a = (expert.act_source(scene.source) if teacher == "shape"
+                 else expert.act(st.eef_pos[0], st.obj_pos[0], st.target_pos[0]))
             obs_s.append(o["observation.state"])
             obs_e.append(o["observation.environment_state"])
             acts.append(a.astype(np.float32))
@@ -80,8 +86,11 @@ def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0) -
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default="outputs/datasets/physvla_libero_spatial", help="dataset root (replaced)")
-    ap.add_argument("--repo-id", default="local/physvla_libero_spatial")
+    ap.add_argument("--suite", default="libero_spatial", help="libero_spatial, libero_object, libero_goal, libero_10")
+    ap.add_argument("--teacher", choices=("bowl", "shape"), default=None,
+                    help="bowl (sim/experts.py) or shape (sim/shape_expert.py); default: bowl on libero_spatial, else shape")
+    ap.add_argument("--out", default=None, help="dataset root (replaced); default outputs/datasets/physvla_<suite>")
+    ap.add_argument("--repo-id", default=None, help="default local/physvla_<suite>")
     ap.add_argument("--tasks", default="0-9")
     ap.add_argument("--seeds", default="10-39", help="LIBERO init-state indices to record")
     ap.add_argument("--dart-sigma", default="0.1,0.3",
@@ -91,12 +100,18 @@ def main() -> None:
 
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
+    teacher = args.teacher or ("bowl" if args.suite == "libero_spatial" else "shape")
+    args.out = args.out or f"outputs/datasets/physvla_{args.suite}"
+    args.repo_id = args.repo_id or f"local/physvla_{args.suite}"
     tasks, seeds = parse_range(args.tasks), parse_range(args.seeds)
+    if any(40 <= s <= 49 for s in seeds):
+        sys.exit("record_dataset: init states 40-49 are kept for the final evaluation; record others")
     sigmas = [float(x) for x in str(args.dart_sigma).split(",") if x.strip()]
     t0 = time.time()
     episodes = []
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        futures = [pool.submit(rollout, t, seeds, sig, lvl) for lvl, sig in enumerate(sigmas) for t in tasks]
+        futures = [pool.submit(rollout, t, seeds, sig, lvl, args.suite, teacher) for lvl, sig in enumerate(sigmas)
+                   for t in tasks]
         for f in tqdm(futures, desc="tasks", unit="task"):
             episodes += f.result()
     out = Path(args.out)
