@@ -26,7 +26,7 @@ from run import rows_of  # noqa: E402
 from study import ROOT, Study, find  # noqa: E402
 
 START, END = "<!-- headline:start -->", "<!-- headline:end -->"
-SHIPPED = "default + rim guide"  # the shipped default's name in eval/studies/efficacy.toml
+SHIPPED = "default + rim guide"  # the shipped default's name in eval/studies/efficacy.toml (its distances fixed)
 SMOOTH = "smooth (default + rim guide + low-pass off the carry)"
 PAPER = ("temporal", "paper (eq. 2, c=0.05)", "paper Alg. 1 (c=1)")
 NEWEST = ("baseline", *PAPER, SHIPPED, SMOOTH)
@@ -56,7 +56,9 @@ def newest_table() -> list[str]:
              "([eval/results/efficacy](eval/results/efficacy/README.md)): success; paired difference against baseline "
              "[95 % CI]; jerk relative to baseline's. `temporal`: the paper's smoothing foil; `paper (eq. 2, c=0.05)`: "
              "its main text (`--physvla.preset=paper`); `paper Alg. 1 (c=1)`: its supplement (`paper_alg1`); "
-             f"`{SHIPPED}`: the shipped default (`--policy.postprocess=physvla` alone); `smooth`: "
+             f"`{SHIPPED}`: the shipped default (`--policy.postprocess=physvla` alone) with the distances fitted on "
+             "this bowl (`geometry=fixed`; the default measures them on the scene, which gave the same result: "
+             "[eval/results/geometry_scene](eval/results/geometry_scene/README.md)); `smooth`: "
              "`--physvla.preset=smooth`\n", "| backbone | " + " | ".join(NEWEST) + " |", "|---|" + "---|" * len(NEWEST)]
     for bn in ("fresh6000", "acts_20_24"):
         bl = study.blocks[bn]

@@ -135,9 +135,9 @@ CORE_FIELDS: tuple = (
               "full where no grasp can close on the object)"),
     )),
     ("the phase machine (eq. 3)", (
-        Field("geometry", str, "fixed", "fixed", "fixed | scene: the distances below (delta_grasp_m, the veto's, the "
-              "rim guide's, the release tolerance) as set, or measured on the scene the state carries (core/geometry.py; "
-              "a state without one keeps them as set)"),
+        Field("geometry", str, "scene", "fixed", "scene | fixed: the distances below (delta_grasp_m, the veto's, the "
+              "rim guide's, the release tolerance) measured on the scene the state carries (core/geometry.py; a state "
+              "without one keeps them as set), or as set"),
         Field("delta_grasp_m", float, 0.06, 0.06, "the grasp envelope, m"),
         Field("h_lift_m", float, 0.02, 0.02, "the lift above its rest that counts as lifted, m"),
         Field("phase_ref", str, "object", "eef", "eef | object: what the place distance measures from once the "

@@ -98,27 +98,28 @@ def _episode(cfg: PhysVLAConfig, scene, d=0.05, steps=30, seed=0):
 
 
 def test_a_state_without_a_scene_keeps_the_fixed_distances_bit_for_bit():
-    for cfg in (PhysVLAConfig(), PhysVLAConfig.paper()):
+    for cfg in (PhysVLAConfig(geometry="fixed"), PhysVLAConfig.paper()):
         fixed, _ = _episode(cfg, np.nan)
         scene, _ = _episode(cfg.replace(geometry="scene"), np.nan)
         np.testing.assert_array_equal(scene, fixed)
 
 
 def test_fixed_ignores_a_measured_scene_and_scene_follows_it():
-    fixed_nan, ph_fixed = _episode(PhysVLAConfig(), np.nan)
-    fixed_can, _ = _episode(PhysVLAConfig(), CAN)
+    fixed_nan, ph_fixed = _episode(PhysVLAConfig(geometry="fixed"), np.nan)
+    fixed_can, _ = _episode(PhysVLAConfig(geometry="fixed"), CAN)
     np.testing.assert_array_equal(fixed_can, fixed_nan)
     _, ph_scene = _episode(PhysVLAConfig(geometry="scene"), CAN)
     assert set(ph_fixed) == {1}  # 5 cm from the origin: inside the fixed 6 cm envelope, the grasp phase
     assert set(ph_scene) == {0}  # beyond the can's 3.95 cm: the approach phase
     # a close 9 cm from the can's origin: within the fixed veto reach (10 cm), let through; beyond the can's own
     # (its edge, 3.15 cm, plus an open hand's half span and pad, 4.8 cm), where no finger can touch it: vetoed
-    fixed, _ = _episode(PhysVLAConfig(), CAN, d=0.09)
+    fixed, _ = _episode(PhysVLAConfig(geometry="fixed"), CAN, d=0.09)
     scene, _ = _episode(PhysVLAConfig(geometry="scene"), CAN, d=0.09)
     assert (fixed[11:, 6] == 1.0).all() and (scene[11:, 6] == -1.0).all()
 
 
 def test_geometry_is_a_checked_field_and_a_configuration_saved_before_it_reads_as_fixed():
+    assert PhysVLAConfig().geometry == "scene" and PhysVLAConfig.paper().geometry == "fixed"
     with pytest.raises(ValueError, match="geometry"):
         PhysVLAConfig(geometry="bowl")
     d = PhysVLAConfig().to_dict()

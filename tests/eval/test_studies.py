@@ -32,7 +32,7 @@ from lerobot_physvla.core.config import PRESETS, PhysVLAConfig  # noqa: E402
 EPISODES = {"table2": 600, "ablation": 350, "place_bias": 60, "lift_sweep": 420, "fetch_sweep": 420, "lift_plate": 60,
             "learned": 14220, "learned_checkpoints": 550, "learned_mid": 2600, "learned_v0": 600, "learned_fixes": 200,
             "so101_faults": 1200, "efficacy": 16895, "rim_guide_5cm": 150, "pose_error": 1700,
-            "pose_error_arms": 900}
+            "pose_error_arms": 900, "geometry_scene": 550}
 
 
 def test_every_study_readme_is_what_its_data_gives():
@@ -75,9 +75,15 @@ def test_recorded_verdicts_are_what_the_declared_rules_give():
 
 
 def test_the_presets_are_the_configurations_that_were_measured():
+    """The efficacy study measured the presets with their fixed distances; the shipped default measures them on the
+    scene (geometry = "scene"), which eval/studies/geometry_scene.toml confirmed against the fixed ones."""
     s = Study(study_mod.find("efficacy"))
-    assert s.config_hash(headline.SHIPPED) == config_hash(PRESETS["default"].to_dict())
-    assert s.config_hash(headline.SMOOTH) == config_hash(PRESETS["smooth"].to_dict())
+    assert s.config_hash(headline.SHIPPED) == config_hash(PRESETS["default"].replace(geometry="fixed").to_dict())
+    assert s.config_hash(headline.SMOOTH) == config_hash(PRESETS["smooth"].replace(geometry="fixed").to_dict())
+    g = Study(study_mod.find("geometry_scene"))
+    assert g.config_hash("default, scene distances") == config_hash(PRESETS["default"].to_dict())
+    (c,) = g.compares
+    assert report.compare_verdict(g, report.Rows(g, run.rows_of(g)), c, "confirm") is True
 
 
 # ---------------------------------------------------------------------------------------------- store
