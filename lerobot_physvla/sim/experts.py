@@ -91,6 +91,31 @@ class PickPlaceExpert:
             theta, size = self.rng.uniform(0, 2 * np.pi), self.rng.uniform(0, c.place_bias_units)
             self.place_bias_units = np.array([np.cos(theta) * size, np.sin(theta) * size, 0.0])
 
+    def _progress(self, e: float, done: bool) -> bool:
+        """A blocked move (contact, workspace edge) counts as done after STALL_STEPS without progress; e: what is
+        left of the move, m."""
+        self._stall = 0 if e < self._best - 0.002 else self._stall + 1
+        self._best = min(self._best, e)
+        return done or self._stall >= self.STALL_STEPS
+
+    def _advance(self) -> None:
+        """On to the next stage, its counters afresh."""
+        self.stage = min(self.stage + 1, len(self.STAGES) - 1)
+        self.count = 0
+        self._best, self._stall = np.inf, 0
+
+    def _faults(self, d: np.ndarray, near_grasp: bool, placing: bool) -> np.ndarray:
+        """The injected failure modes on the position command d (action units): the action noise (drawn every
+        step either way, so streams match across noise_stage) and, while placing, the place bias."""
+        c = self.cfg
+        if c.action_noise > 0:
+            noise = np.append(self.rng.normal(0.0, c.action_noise, 2), 0.0)
+            if c.noise_stage == "all" or near_grasp:
+                d = d + noise
+        if c.place_bias_units > 0 and placing:
+            d = d + self.place_bias_units
+        return d
+
     def _move(self, eef: np.ndarray, goal: np.ndarray, fast: bool = False) -> tuple[np.ndarray, float]:
         err = goal - eef
         d = self.cfg.gain * err / self.layout.metres_per_unit
@@ -140,24 +165,14 @@ class PickPlaceExpert:
         else:
             d, done = self._move(eef_pos, place + up)[0], False
         if name in ("hover_obj", "descend", "lift", "hover_tgt", "lower"):
-            # a blocked move (contact, workspace edge) counts as done after STALL_STEPS without progress
-            e = float(np.linalg.norm((grasp if name in ("hover_obj", "descend") else place) - eef_pos))
-            self._stall = 0 if e < self._best - 0.002 else self._stall + 1
-            self._best = min(self._best, e)
-            done = done or self._stall >= self.STALL_STEPS
+            done = self._progress(float(np.linalg.norm((grasp if name in ("hover_obj", "descend") else place) - eef_pos)),
+                                  done)
         if done:
-            self.stage = min(self.stage + 1, len(self.STAGES) - 1)
-            self.count = 0
-            self._best, self._stall = np.inf, 0
+            self._advance()
         near_grasp = name in ("descend", "close") or (
             name == "hover_obj" and np.linalg.norm((grasp - eef_pos)[:2]) < self.GRASP_ZONE_M)
-        if c.action_noise > 0:
-            noise = np.append(self.rng.normal(0.0, c.action_noise, 2), 0.0)
-            if c.noise_stage == "all" or near_grasp:
-                d = d + noise  # drawn every step either way, so streams match across noise_stage
-        if c.place_bias_units > 0 and (name == "lower" or (
-                name == "hover_tgt" and np.linalg.norm((place - eef_pos)[:2]) < self.GRASP_ZONE_M)):
-            d = d + self.place_bias_units
+        placing = name == "lower" or (name == "hover_tgt" and np.linalg.norm((place - eef_pos)[:2]) < self.GRASP_ZONE_M)
+        d = self._faults(d, near_grasp, placing)
         a[list(lay.pos)] = d
         if lay.gripper is not None:
             a[lay.gripper] = grip

@@ -424,26 +424,16 @@ class ShapeExpert(PickPlaceExpert):
             d, _ = self._move(eef_pos, np.array([*eef_pos[:2], self._retreat_z]))
             done = False
         if name in ("hover_obj", "descend", "lift", "hover_tgt", "lower"):
-            # a blocked move (contact, workspace edge) counts as done after STALL_STEPS without progress
             e = float(np.linalg.norm(grasp - eef_pos)) if name in ("hover_obj", "descend") else \
                 float(np.linalg.norm(obj_goal - obj_pos))
-            e += yaw_err * 0.05  # a turning wrist is progress too
-            self._stall = 0 if e < self._best - 0.002 else self._stall + 1
-            self._best = min(self._best, e)
-            done = done or self._stall >= self.STALL_STEPS
+            done = self._progress(e + yaw_err * 0.05, done)  # a turning wrist is progress too
         if done:
-            self.stage = min(self.stage + 1, len(self.STAGES) - 1)
-            self.count = 0
-            self._best, self._stall = np.inf, 0
+            self._advance()
         near_grasp = name in ("descend", "close") or (
             name == "hover_obj" and np.linalg.norm((grasp - eef_pos)[:2]) < self.GRASP_ZONE_M)
-        if c.action_noise > 0:
-            noise = np.append(self.rng.normal(0.0, c.action_noise, 2), 0.0)
-            if c.noise_stage == "all" or near_grasp:
-                d = d + noise  # drawn every step either way, so streams match across noise_stage
-        if c.place_bias_units > 0 and (name == "lower" or (
-                name == "hover_tgt" and np.linalg.norm((obj_goal - obj_pos)[:2]) < self.GRASP_ZONE_M)):
-            d = d + self.place_bias_units
+        placing = name == "lower" or (
+            name == "hover_tgt" and np.linalg.norm((obj_goal - obj_pos)[:2]) < self.GRASP_ZONE_M)
+        d = self._faults(d, near_grasp, placing)
         a[list(lay.pos)] = d
         if len(lay.rot) == 3:
             rot = np.zeros(3)
