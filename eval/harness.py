@@ -70,16 +70,17 @@ class Unit:
         return f"{self.backbone}__{self.config_name}__{where}__s{self.first_seed}-{self.first_seed + self.episodes - 1}"
 
 
-_SCENES: dict[str, object] = {}  # per worker process: scene name -> scene
+_SCENES = None  # per worker process: the scenes it built (sim/scenes.py SceneCache), made on first use
 _POLICIES: dict[str, LeRobotBackbone] = {}  # per worker process: checkpoint -> backbone
 
 
 def _scene(name: str):
-    from lerobot_physvla.sim.scenes import make_scene
+    global _SCENES
+    if _SCENES is None:
+        from lerobot_physvla.sim.scenes import SceneCache
 
-    if name not in _SCENES:
-        _SCENES[name] = make_scene(name)
-    return _SCENES[name]
+        _SCENES = SceneCache()
+    return _SCENES.get(name)
 
 
 def _backbone(unit: Unit, scene):

@@ -18,15 +18,16 @@ from lerobot_physvla.core.state import field_offsets, n_joints_from_size
 from lerobot_physvla.replay import columns as C
 from lerobot_physvla.replay.dataset import ReplayData, ReplayError
 
-_SCENES: dict[str, object] = {}  # per worker process: scene name -> scene
+_SCENES = None  # per worker process: the scenes it built (sim/scenes.py SceneCache), made on first use
 
 
 def _scene(name: str):
-    from lerobot_physvla.sim.scenes import make_scene
+    global _SCENES
+    if _SCENES is None:
+        from lerobot_physvla.sim.scenes import SceneCache
 
-    if name not in _SCENES:
-        _SCENES[name] = make_scene(name)
-    return _SCENES[name]
+        _SCENES = SceneCache()
+    return _SCENES.get(name)
 
 
 def run(scene, actions: np.ndarray, seed: int, corrector=None, perception=None) -> dict:

@@ -124,6 +124,29 @@ def quat_to_axis_angle(quat_xyzw: np.ndarray) -> np.ndarray:
     return (q[:3] / den * 2.0 * np.arccos(w)).astype(np.float32)
 
 
+class SceneCache:
+    """Scenes by name, built once and kept for reuse in one process, the `most` recently used of them: a LIBERO
+    scene holds ~0.5 GB, so a worker that visits every task of three suites must let the older ones go (closed).
+
+    Attributes:
+        most: how many scenes are kept.
+    """
+
+    def __init__(self, most: int = 6):
+        self.most = most
+        self._scenes: dict[str, Scene] = {}
+
+    def get(self, name: str) -> Scene:
+        scene = self._scenes.pop(name, None) or make_scene(name)
+        self._scenes[name] = scene  # the most recent last
+        while len(self._scenes) > self.most:
+            old = self._scenes.pop(next(iter(self._scenes)))
+            close = getattr(getattr(old, "env", None), "close", None)
+            if close is not None:
+                close()
+        return scene
+
+
 def make_scene(name: str) -> Scene:
     """Build a scene by name (see the module docstring); clear error for an unknown one."""
     if name.startswith("libero_"):
