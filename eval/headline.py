@@ -181,13 +181,39 @@ def readme_table() -> list[str]:
     return lines
 
 
+SUITES = {"object": "LIBERO-Object", "goal": "LIBERO-Goal", "ten": "LIBERO-10"}
+
+
+def suites_table() -> list[str]:
+    """Baseline and the shipped default on the other LIBERO suites (eval/studies/suites.toml, pre-registered): success,
+    and the paired difference against baseline [95 % CI]; a cell not run yet says so."""
+    study, rows = _load("suites")
+    lines = ["| suite (tasks, init states) | policy | baseline | shipped default |", "|---|---|---|---|"]
+    for bn, title in SUITES.items():
+        bl = study.blocks[bn]
+        where = f"{title} ({len(bl.tasks)} tasks, {bl.seeds[0]}-{bl.seeds[-1]})"
+        for b in bl.backbones:
+            n = len(bl.tasks) * len(bl.seeds)
+            base, ship = rows.get("baseline", b, bl), rows.get("shipped default", b, bl)
+            if len(base) < n or len(ship) < n:
+                lines.append(f"| {where} | {b} | not run yet | not run yet |")
+                continue
+            p = cmp.paired(ship, base)
+            lines.append(f"| {where} | {b} | {p['base_success']:.0%} | {p['success']:.0%} ({p['diff'] * 100:+.0f} "
+                         f"[{p['ci'][0] * 100:+.0f}, {p['ci'][1] * 100:+.0f}]) |")
+    return lines
+
+
 def readme_block() -> str:
-    return "\n".join([START, "", *readme_table(), "", END])
+    return "\n".join([START, "", *readme_table(), "", *suites_table(), "", END])
 
 
 def block() -> str:
     lines = [START, ""]
     lines += newest_table()
+    lines += ["**The other LIBERO suites, pre-registered ([eval/results/suites](eval/results/suites/README.md)): the "
+              "shape-planning scripted expert clean, jittered and faulty; success and the paired difference against "
+              "baseline [95 % CI]**\n", *suites_table(), ""]
     lines += lift_tables()
     lines += robot_table()
     lines += success_table("table2", "LIBERO-Spatial, scripted backbones x modes (10 tasks x 5 seeds)",
