@@ -70,17 +70,13 @@ class Unit:
         return f"{self.backbone}__{self.config_name}__{where}__s{self.first_seed}-{self.first_seed + self.episodes - 1}"
 
 
-_SCENES = None  # per worker process: the scenes it built (sim/scenes.py SceneCache), made on first use
 _POLICIES: dict[str, LeRobotBackbone] = {}  # per worker process: checkpoint -> backbone
 
 
 def _scene(name: str):
-    global _SCENES
-    if _SCENES is None:
-        from lerobot_physvla.sim.scenes import SceneCache
+    from lerobot_physvla.sim.scenes import cached_scene
 
-        _SCENES = SceneCache()
-    return _SCENES.get(name)
+    return cached_scene(name)
 
 
 def _backbone(unit: Unit, scene):

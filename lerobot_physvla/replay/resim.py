@@ -18,16 +18,12 @@ from lerobot_physvla.core.state import field_offsets, n_joints_from_size
 from lerobot_physvla.replay import columns as C
 from lerobot_physvla.replay.dataset import ReplayData, ReplayError
 
-_SCENES = None  # per worker process: the scenes it built (sim/scenes.py SceneCache), made on first use
 
 
 def _scene(name: str):
-    global _SCENES
-    if _SCENES is None:
-        from lerobot_physvla.sim.scenes import SceneCache
+    from lerobot_physvla.sim.scenes import cached_scene
 
-        _SCENES = SceneCache()
-    return _SCENES.get(name)
+    return cached_scene(name)
 
 
 def run(scene, actions: np.ndarray, seed: int, corrector=None, perception=None) -> dict:

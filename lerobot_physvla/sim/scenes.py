@@ -147,6 +147,17 @@ class SceneCache:
         return scene
 
 
+_CACHE: SceneCache | None = None  # this process's scenes (made on first use)
+
+
+def cached_scene(name: str) -> Scene:
+    """A scene by name from this process's SceneCache: what a worker of the harness or of a re-simulation reuses."""
+    global _CACHE
+    if _CACHE is None:
+        _CACHE = SceneCache()
+    return _CACHE.get(name)
+
+
 def make_scene(name: str) -> Scene:
     """Build a scene by name (see the module docstring); clear error for an unknown one."""
     if name.startswith("libero_"):
