@@ -65,7 +65,6 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 DATASET = "outputs/datasets/physvla_libero_spatial"
-REPO_ID = "local/physvla_libero_spatial"
 SEED = 1000
 CHECKPOINTS_PER_RUN = 5  # a checkpoint every fifth of the steps: the weak siblings come from them
 
@@ -195,6 +194,49 @@ MID_CHOICE: dict[str, tuple[str, int]] = {"act_single_mid": (f"{CPU_DRAW_DIR}/ac
                                           "act_chunk_mid2": (f"{CPU_DRAW_DIR}/act_chunk_few5", 2400)}
 
 
+# Per-suite ACTs (issue 41 item 3): the two ACT recipes unchanged, trained on one suite's demonstrations
+# from the shape-planning expert (`record_dataset.py --suite S --seeds 20-39`: init states 20-39, DART
+# 0.1 and 0.3, successful episodes only) into outputs/train/<suite>/<recipe>:
+#     .venv/bin/python backbones/train_backbones.py act_single --suite libero_object
+# Which checkpoints become backbones, written before any of them trained: every checkpoint of a run
+# (steps 1/5 .. 5/5) runs uncorrected on the suite's selection block (init states 10-14;
+# eval/studies/suites_learned_select.toml), then (`choose_suite`)
+#  - strong, `<short>_<recipe>`: the latest checkpoint whose success lies in STRONG_BAND; if none does,
+#    the final one, reported as outside the band;
+#  - weaker sibling, `<short>_<recipe>_weak`: of the other checkpoints, the one in WEAK_BAND closest to
+#    WEAK_TARGET, ties to the earlier step; if none lies in the band the run has no weaker sibling
+#    (reported, not searched further).
+SUITE_SHORT = {"libero_object": "object", "libero_goal": "goal", "libero_10": "ten"}
+SUITE_RECIPES = ("act_single", "act_chunk")
+STRONG_BAND, WEAK_BAND, WEAK_TARGET = (0.60, 0.95), (0.20, 0.50), 0.35
+# "<short>_<recipe>[_weak]" -> (its run's directory under the training root, step), as the selection
+# study's units chose it (a test recomputes the choice from them)
+SUITE_CHOICE: dict[str, tuple[str, int]] = {}
+
+
+def choose_suite(success: dict[int, float]) -> tuple[int, int | None]:
+    """The rule above for one run: (strong step, weaker sibling's step or None) from each checkpoint's
+    uncorrected success on the selection block ({step: fraction})."""
+    if not success:
+        raise ValueError("choose_suite: no checkpoint evaluated")
+    steps = sorted(success)
+    in_strong = [s for s in steps if STRONG_BAND[0] <= success[s] <= STRONG_BAND[1]]
+    strong = in_strong[-1] if in_strong else steps[-1]
+    weak = [s for s in steps if s != strong and WEAK_BAND[0] <= success[s] <= WEAK_BAND[1]]
+    if not weak:
+        return strong, None
+    return strong, min(weak, key=lambda s: (round(abs(success[s] - WEAK_TARGET), 9), s))
+
+
+def suite_paths(suite: str) -> tuple[str, str]:
+    """(dataset root, training root) of a suite's ACTs."""
+    if suite not in SUITE_SHORT and suite != "libero_spatial":
+        raise SystemExit(f"train_backbones: unknown suite {suite!r}; one of libero_spatial, {', '.join(SUITE_SHORT)}")
+    if suite == "libero_spatial":
+        return DATASET, "outputs/train"
+    return f"outputs/datasets/physvla_{suite}", f"outputs/train/{suite}"
+
+
 def mid_candidates(name: str, out_root: str = "outputs/train") -> dict[str, Path]:
     """A `_mid` sibling's candidate checkpoints on disk: `<name>@<step>` for its continued run,
     `<recipe>_cpufull@<step>` for the named checkpoints of its recipe's whole run on this CPU."""
@@ -280,10 +322,15 @@ def command(name: str, dataset: str, out_root: str, steps: int | None = None, de
         args = [a.replace('"ENV": "MEAN_STD", ', "").replace('"ENV": "MIN_MAX", ', "") for a in args]
         name = name + RAW_ENV
     head = _lerobot_train()
-    return [*head, f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset}", f"--policy.device={device}",
+    return [*head, f"--dataset.repo_id={repo_id(dataset)}", f"--dataset.root={dataset}", f"--policy.device={device}",
             f"--num_workers={num_workers}", *_COMMON, *args, f"--steps={n}",
             f"--save_freq={max(1, n // CHECKPOINTS_PER_RUN)}", f"--output_dir={out_root}/{name}",
             f"--job_name=physvla_{name}"]
+
+
+def repo_id(dataset: str) -> str:
+    """The local repo id of a dataset root (record_dataset.py names them local/<directory>)."""
+    return f"local/{Path(dataset).name}"
 
 
 def _lerobot_train() -> list[str]:
@@ -299,7 +346,7 @@ def continued_command(name: str, dataset: str, out_root: str, steps: int | None 
     base, n, every = CONTINUED[name]
     n = n if steps is None else steps
     head = _lerobot_train()
-    return [*head, f"--policy.path={COMMITTED / base}", f"--dataset.repo_id={REPO_ID}", f"--dataset.root={dataset}",
+    return [*head, f"--policy.path={COMMITTED / base}", f"--dataset.repo_id={repo_id(dataset)}", f"--dataset.root={dataset}",
             f"--policy.device={device}", f"--num_workers={num_workers}", *_COMMON, "--batch_size=32", f"--steps={n}",
             f"--save_freq={min(every, n)}", f"--output_dir={out_root}/{name}", f"--job_name=physvla_{name}"]
 
@@ -320,8 +367,8 @@ def checkpoint(name: str, out_root: str = "outputs/train") -> Path:
     if name in SIBLINGS:
         recipe, step = SIBLINGS[name]
         return Path(out_root) / recipe / "checkpoints" / f"{step:06d}" / "pretrained_model"
-    if name in MID_CHOICE:
-        run, step = MID_CHOICE[name]
+    if name in MID_CHOICE or name in SUITE_CHOICE:
+        run, step = MID_CHOICE.get(name) or SUITE_CHOICE[name]
         return Path(out_root) / run / "checkpoints" / f"{step:06d}" / "pretrained_model"
     if name in CONTINUED:  # not chosen yet: the continued run's last checkpoint
         return Path(out_root) / name / "checkpoints" / "last" / "pretrained_model"
@@ -414,8 +461,10 @@ def main() -> None:
     ap.add_argument("recipe", nargs="?", choices=[*RECIPES, *SMALLER, *FEWER, *CONTINUED, *RESUMED, "all"], default="all",
                     help="a recipe, a `_mid` sibling that continues a committed checkpoint, a resumed CPU run, "
                          "or all recipes")
-    ap.add_argument("--dataset", default=DATASET)
-    ap.add_argument("--out", default="outputs/train")
+    ap.add_argument("--suite", default="libero_spatial",
+                    help="whose demonstrations: sets --dataset and --out to outputs/{datasets/physvla_,train/}<suite>")
+    ap.add_argument("--dataset", default=None, help=f"dataset root (default: the suite's; {DATASET})")
+    ap.add_argument("--out", default=None, help="training root (default: the suite's; outputs/train)")
     ap.add_argument("--steps", type=int, default=None, help="override the recipe's step count (smoke tests)")
     ap.add_argument("--list", action="store_true", help="print each recipe's command and exit")
     ap.add_argument("--parallel", type=int, default=1, help="recipes trained side by side")
@@ -427,6 +476,8 @@ def main() -> None:
     ap.add_argument("--raw-env", action="store_true",
                     help="ablation: leave observation.environment_state raw, as before the fix (-> <recipe>_rawenv)")
     args = ap.parse_args()
+    dataset, out = suite_paths(args.suite)
+    args.dataset, args.out = args.dataset or dataset, args.out or out
     names = list(RECIPES) if args.recipe == "all" else [args.recipe]
     if args.list:
         for n in names:

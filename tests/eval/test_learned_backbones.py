@@ -296,3 +296,31 @@ def test_the_kept_mid_siblings_are_the_ones_the_rule_chose_on_the_recorded_runs(
         assert kept.rsplit("@", 1)[1] == f"{step:06d}" and (run == name) == kept.startswith(f"{name}@"), name
         committed = train_backbones.COMMITTED / name / "model.safetensors"
         assert hashlib.sha256(committed.read_bytes()).hexdigest() == sha[kept], name
+
+
+def test_the_suite_rule_keeps_the_latest_strong_checkpoint_and_the_weak_one_nearest_35_percent():
+    choose = train_backbones.choose_suite
+    # strong: the latest in 60-95 %; weak: another in 20-50 %, nearest 35 %
+    assert choose({2400: 0.10, 4800: 0.30, 7200: 0.40, 9600: 0.70, 12000: 0.80}) == (12000, 4800)
+    # the final checkpoint above the band: the latest in it is strong
+    assert choose({2400: 0.36, 4800: 0.62, 7200: 0.98}) == (4800, 2400)
+    # none in the strong band: the final one; none in the weak band: no sibling
+    assert choose({2400: 0.0, 4800: 0.10, 7200: 1.0}) == (7200, None)
+    # a tie in distance from 35 %: the earlier step
+    assert choose({1000: 0.45, 2000: 0.25, 3000: 0.9}) == (3000, 1000)
+    # a weak sibling is never the strong checkpoint itself
+    assert choose({1000: 0.40}) == (1000, None)
+    with pytest.raises(ValueError):
+        choose({})
+
+
+def test_the_suite_paths_and_repo_id_follow_the_suite():
+    assert train_backbones.suite_paths("libero_object") == ("outputs/datasets/physvla_libero_object",
+                                                            "outputs/train/libero_object")
+    assert train_backbones.suite_paths("libero_spatial") == (train_backbones.DATASET, "outputs/train")
+    cmd = train_backbones.command("act_chunk", "outputs/datasets/physvla_libero_goal", "outputs/train/libero_goal")
+    assert "--dataset.repo_id=local/physvla_libero_goal" in cmd and "--output_dir=outputs/train/libero_goal/act_chunk" in cmd
+    assert "--dataset.repo_id=local/physvla_libero_spatial" in train_backbones.command("act_chunk", train_backbones.DATASET,
+                                                                                      "outputs/train")
+    with pytest.raises(SystemExit, match="unknown suite"):
+        train_backbones.suite_paths("libero_90")
