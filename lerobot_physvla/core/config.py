@@ -113,7 +113,11 @@ LIBERO_OSC_POSE = ActionLayout(dim=7, pos=(0, 1, 2), rot=(3, 4, 5), gripper=6, m
 # gymnasium-robotics Fetch: [dx, dy, dz, g], 0.05 m per unit (pos_ctrl *= 0.05), +1 = open.
 FETCH_4D = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, metres_per_unit=0.05, gripper_open=1.0)
 
-LAYOUTS: dict[str, ActionLayout] = {"libero_osc_pose": LIBERO_OSC_POSE, "fetch_4d": FETCH_4D}
+# MetaWorld (Sawyer, mocap): [dx, dy, dz, g]; the mocap target moves action * 0.01 m a step (SawyerXYZEnv.action_scale;
+# the tool centre follows at that speed once moving, measured), g: +1 closes, -1 opens (the finger servos get [g, -g]).
+METAWORLD = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, metres_per_unit=0.01, gripper_open=-1.0)
+
+LAYOUTS: dict[str, ActionLayout] = {"libero_osc_pose": LIBERO_OSC_POSE, "fetch_4d": FETCH_4D, "metaworld": METAWORLD}
 
 
 # The fields that belong to no one correction, by concept: (heading, fields). Each correction's own fields

@@ -2,8 +2,9 @@
 
 `activate_eval(argv)` strips our flags from argv (lerobot's parser would reject them) and, for
 `--policy.postprocess=physvla`, installs the eval hook of `compat`: a `libero` env becomes
-`libero_physvla`, the corrector step is appended to the policy postprocessor, and per-episode
-diagnostics are written beside eval_info.json. Bad flags end the program with a one-line error
+`libero_physvla` and a `metaworld` env `metaworld_physvla`, the corrector step is appended to the policy
+postprocessor (with the env's own fields, `physvla_defaults`: metaworld's layout, where no flag sets them), and
+per-episode diagnostics are written beside eval_info.json. Bad flags end the program with a one-line error
 and exit code 2.
 
     lerobot-physvla-eval ARGS   is   lerobot-eval ARGS   (the plugin applies the flags either way)
@@ -20,6 +21,7 @@ from pathlib import Path
 from lerobot_physvla import compat
 from lerobot_physvla.diagnostics import EpisodeRecorder
 from lerobot_physvla.envs.libero_physvla import as_physvla_env
+from lerobot_physvla.envs.metaworld_physvla import as_metaworld_physvla_env
 from lerobot_physvla.flags import FlagError, build_config, split_argv
 from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep
 
@@ -28,10 +30,11 @@ def _write_diagnostics(cfg, step) -> None:
     recorder = getattr(step, "_physvla_recorder", None)
     if recorder is None or cfg.output_dir is None:
         return
-    from lerobot.envs.libero import TASK_SUITE_MAX_STEPS
+    recorder.horizon = getattr(cfg.env, "horizon", None) or getattr(cfg.env, "episode_length", None)
+    if recorder.horizon is None:
+        from lerobot.envs.libero import TASK_SUITE_MAX_STEPS
 
-    task = str(getattr(cfg.env, "task", "")).split(",")[0]
-    recorder.horizon = getattr(cfg.env, "episode_length", None) or TASK_SUITE_MAX_STEPS.get(task)
+        recorder.horizon = TASK_SUITE_MAX_STEPS.get(str(getattr(cfg.env, "task", "")).split(",")[0])
     info = Path(cfg.output_dir) / "eval_info.json"
     if info.is_file():
         per_task = json.loads(info.read_text()).get("per_task", [])
@@ -87,6 +90,14 @@ def _write_report(out: Path, recorder, pcfg, plots: int = 10) -> None:
     logging.info("physvla: report in %s", md)
 
 
+def for_env(cfg, env_cfg, given=()):
+    """The corrector's configuration for the evaluated env: the fields the env needs (its `physvla_defaults`, e.g.
+    metaworld_physvla's layout "metaworld" and weighting "task_space") where the flags did not set them (`given`:
+    the --physvla.<field> names); `cfg` itself for an env that needs none."""
+    changes = {k: v for k, v in (getattr(env_cfg, "physvla_defaults", None) or {}).items() if k not in set(given)}
+    return cfg.replace(**changes) if changes else cfg
+
+
 def activate_eval(argv: list[str]) -> None:
     """Strip our flags from argv in place and install the eval hook if asked. Exits 2 on bad flags."""
     try:
@@ -113,16 +124,23 @@ def activate_eval(argv: list[str]) -> None:
             step.listeners.append(step._physvla_recorder)
         return step
 
-    def make_step(actions_per_call: int = 1):  # the configuration for this policy (chunk_phase_caps)
-        return attach(PhysVLACorrectorStep(config=cfg.for_policy(actions_per_call).to_dict()))
+    env_flags = {a.partition("=")[0].removeprefix("--env.") for a in rest if a.startswith("--env.")}
+    evaluated: dict[str, object] = {}
+
+    def adapt_env(env_cfg):  # libero -> libero_physvla, metaworld -> metaworld_physvla
+        evaluated["env"] = as_metaworld_physvla_env(as_physvla_env(env_cfg), given=env_flags)
+        return evaluated["env"]
+
+    def make_step(actions_per_call: int = 1):  # the configuration for this policy (chunk_phase_caps) and env
+        c = for_env(cfg, evaluated.get("env"), given=overrides)
+        return attach(PhysVLACorrectorStep(config=c.for_policy(actions_per_call).to_dict()))
 
     def before_rollout(step):  # compact the finished rollout batch here, not in the next batch's first tick
         recorder = getattr(step, "_physvla_recorder", None)
         if recorder is not None:
             recorder.end_batch()
 
-    compat.install_eval_hook(PhysVLACorrectorStep, make_step, _write_diagnostics, attach, as_physvla_env,
-                             before_rollout)
+    compat.install_eval_hook(PhysVLACorrectorStep, make_step, _write_diagnostics, attach, adapt_env, before_rollout)
 
 
 def eval_main() -> None:

@@ -1,0 +1,282 @@
+"""Env type `metaworld_physvla`: lerobot's MetaWorld env plus the physical-state export, optionally camera-free.
+
+    lerobot-eval --env.type=metaworld_physvla --env.task=pick-place-v3 [--env.cameras=false] ...
+    lerobot-eval --env.type=metaworld --env.task=pick-place-v3 --policy.postprocess=physvla   (becomes the above)
+
+Each sub-env (in the main process or an async worker) is lerobot's own `MetaworldEnv` inside
+`MetaworldStateExport`, a gym.Wrapper that adds to every observation
+    robot_state["physvla_state"]  the packed PhysState of this env (sources/metaworld.py)
+    robot_state["physvla_extra"]  [task_id, is_success, the action executed last step (4)]
+and, with cameras=false, never renders (~1 ms a step here instead of ~190 ms), returns no pixels, and adds
+`environment_state` = [object xyz, target xyz] so state-based policies have the scene. The env preprocessor
+puts `PhysVLAStateCaptureStep` first. Tasks outside the corrector's model (sources/metaworld.py UNSUPPORTED)
+export valid = -1 rows: the corrector passes them through, counted as unsupported_goal.
+
+`episode_length` is the rollout's horizon here (lerobot's `metaworld` declares 400 but runs MetaWorld's 500);
+left unset it is MetaWorld's own 500, what `--env.type=metaworld` runs. The corrector's configuration follows the
+env (`physvla_defaults`: the "metaworld" action layout, and Branch B's task_space weighting, since joint_diag
+refuses a 7-joint arm on a 4-D action) where no --physvla.<field> names its own. The `pose_*` fields put a
+perception model between the simulator and physvla_state, as libero_physvla's do.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from dataclasses import dataclass
+from functools import partial
+from typing import ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from lerobot.configs.types import FeatureType, PolicyFeature
+from lerobot.envs.configs import EnvConfig
+from lerobot.envs.configs import MetaworldEnv as MetaworldEnvConfig
+from lerobot.processor import PolicyProcessorPipeline
+from lerobot.utils.constants import OBS_ENV_STATE, OBS_IMAGE
+
+from lerobot_physvla import compat
+from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID, field_offsets, packed_size
+from lerobot_physvla.processor.physvla_processor import EXTRA_KEY, STATE_KEY, PhysVLAStateCaptureStep
+from lerobot_physvla.sources.perception import Perception, PerceptionConfig
+
+N_JOINTS = 7  # the Sawyer of MetaWorld
+ACTION_DIM = 4  # dx, dy, dz, gripper
+ENV_STATE_DIM = 6  # object xyz, target xyz
+METAWORLD_HORIZON = 500  # SawyerXYZEnv.max_path_length: stepping past it raises
+_BLANK_FRAME = np.zeros((64, 64, 3), np.uint8)  # what render() shows with cameras off
+_F = field_offsets(N_JOINTS)
+_OBJ, _TGT = _F["obj_pos"], _F["target_pos"]
+_WARNED_GOALS: set[str] = set()  # tasks outside the model already said, once per process
+
+
+def _no_reset(*args, **kwargs):
+    return None, {}
+
+
+class MetaworldStateExport(gym.Wrapper):
+    """Adds the physical state of one MetaWorld sub-env to its observations (see module docstring).
+
+    Attributes:
+        cameras: False: the env never renders and returns no pixels.
+        task_id: the task's index in its task group, as lerobot-eval numbers it (exported in physvla_extra).
+        task: the MetaWorld task name.
+        read_failures: state reads that raised (those steps export an invalid state: no correction).
+        unsupported_goal: the task and why it is outside what the corrector models; its rows export valid = -1 and
+            pass through as unsupported_goal.
+        perception: the perception model between the simulator and physvla_state (None: exact poses).
+        _max_episode_steps: the rollout's horizon lerobot-eval reads (control steps).
+    """
+
+    def __init__(self, env, task_id: int = 0, cameras: bool = True, perception: PerceptionConfig | None = None,
+                 max_steps: int | None = None):
+        super().__init__(env)
+        inner = env.unwrapped
+        self.cameras = cameras
+        self.task_id = int(task_id)
+        self.task = str(getattr(inner, "task", ""))
+        self.perception = None if perception is None or perception.exact else Perception(perception)
+        self.source = None
+        self.read_failures = 0
+        self.unsupported_goal: str | None = None
+        self._sim = None  # the SawyerXYZEnv the source reads (MetaworldEnv builds it at its first reset)
+        self._steps = 0  # control steps since the last reset: a row with no source still counts them
+        self._last_action = np.zeros(ACTION_DIM)
+        horizon = int(getattr(inner, "_max_episode_steps", METAWORLD_HORIZON))
+        self._max_episode_steps = horizon if max_steps is None else min(int(max_steps), METAWORLD_HORIZON)
+        obs_space = dict(env.observation_space.spaces)
+        if not cameras:
+            obs_space.pop("pixels", None)
+            obs_space["environment_state"] = spaces.Box(-np.inf, np.inf, (ENV_STATE_DIM,), np.float64)
+        rs = dict(obs_space["robot_state"].spaces) if "robot_state" in obs_space else {}
+        rs[STATE_KEY] = spaces.Box(-np.inf, np.inf, (packed_size(N_JOINTS),), np.float64)
+        rs[EXTRA_KEY] = spaces.Box(-np.inf, np.inf, (2 + ACTION_DIM,), np.float64)
+        obs_space["robot_state"] = spaces.Dict(rs)
+        self.observation_space = spaces.Dict(obs_space)
+
+    def _state_only_obs(self, raw_obs: np.ndarray) -> dict:
+        """MetaworldEnv._format_raw_obs without the render (cameras=false): agent_pos where its obs_type has it."""
+        inner = self.env.unwrapped
+        return {"agent_pos": raw_obs[:4]} if inner.obs_type == "pixels_agent_pos" else {}
+
+    def _augment(self, obs: dict, success: bool) -> dict:
+        obs = dict(obs)
+        row = None
+        if self.source is not None:
+            try:
+                row = self.source.read_packed()
+            except Exception as err:  # noqa: BLE001 - do-no-harm: an unreadable state turns correction off
+                self.read_failures += 1
+                if self.read_failures == 1:
+                    warnings.warn(f"physvla: the state source failed ({err!r}); the corrector passes actions "
+                                  "through while it does", RuntimeWarning, stacklevel=2)
+        if row is None or row.shape != (packed_size(N_JOINTS),):
+            row = np.zeros(packed_size(N_JOINTS))  # valid = 0: the corrector passes through
+            row[_F["episode_step"]] = self._steps  # episodes still split where they do
+            row[_F["dt"]] = float(getattr(self._sim, "dt", 0.0125))
+            if self.unsupported_goal is not None:
+                row[_F["valid"]] = UNSUPPORTED_GOAL_VALID
+                try:  # the scene still reaches a state-based policy (the corrector ignores a valid = -1 row)
+                    row[_OBJ : _OBJ + 3] = np.asarray(self._sim._get_pos_objects(), float)[:3]
+                    row[_TGT : _TGT + 3] = np.asarray(self._sim._target_pos, float).reshape(3)
+                except Exception:  # noqa: BLE001 - a task with no object or target: zeros
+                    row[_OBJ : _TGT + 3] = 0.0
+        rs = dict(obs.get("robot_state", {}))
+        rs[STATE_KEY] = row if self.perception is None else self.perception.apply(row[None])[0]
+        rs[EXTRA_KEY] = np.concatenate([[self.task_id, float(success)], self._last_action])
+        obs["robot_state"] = rs
+        if not self.cameras:  # object xyz, target xyz (exact: the policy's observation is never faulted)
+            obs["environment_state"] = np.concatenate([row[_OBJ : _OBJ + 3], row[_TGT : _TGT + 3]])
+        return obs
+
+    def _bind(self) -> None:
+        """The state source of the SawyerXYZEnv MetaworldEnv built (once: it keeps one for the env's life)."""
+        from lerobot_physvla.sources.metaworld import MetaworldStateSource
+        from lerobot_physvla.sources.robosuite import UnsupportedGoal
+
+        sim = self.env.unwrapped._env
+        if sim is self._sim:
+            return
+        self._sim, self.source, self.unsupported_goal = sim, None, None
+        try:
+            self.source = MetaworldStateSource(sim, self.task)
+        except UnsupportedGoal as e:  # a task outside the model: said once, its rows marked, actions passed
+            self.unsupported_goal = e.goal
+            if e.goal not in _WARNED_GOALS:
+                _WARNED_GOALS.add(e.goal)
+                warnings.warn(f"physvla: task {self.task_id} ({self.task}): unsupported_goal: {e.goal}; its actions "
+                              "pass through unchanged (counted as unsupported_goal)", RuntimeWarning, stacklevel=3)
+        except Exception as e:  # noqa: BLE001 - do-no-harm: no state -> the corrector passes through
+            self.read_failures += 1
+            warnings.warn(f"physvla: no MetaWorld state source ({e!r}); the corrector passes actions through",
+                          RuntimeWarning, stacklevel=3)
+
+    def reset(self, **kwargs):
+        inner = self.env.unwrapped
+        if not self.cameras:
+            inner._format_raw_obs = self._state_only_obs  # MetaworldEnv then never renders
+        obs, info = self.env.reset(**kwargs)
+        self._steps = 0
+        self._last_action = np.zeros(ACTION_DIM)
+        self._bind()
+        if self.unsupported_goal is not None:
+            info = {**info, "physvla_unsupported_goal": self.unsupported_goal}
+        if self.source is not None:
+            self.source.reset()
+        if self.perception is not None:
+            self.perception.reset(seed=kwargs.get("seed"))
+        return self._augment(obs, False), info
+
+    def step(self, action):
+        self._last_action = np.asarray(action, dtype=np.float64).copy()
+        inner = self.env.unwrapped
+        # MetaworldEnv.step resets its simulation on success, before the wrapper could read the terminal state;
+        # the vector env's autoreset (this wrapper's reset) starts the next episode instead
+        inner.reset = _no_reset
+        try:
+            obs, reward, terminated, truncated, info = self.env.step(action)
+        finally:
+            del inner.reset
+        self._steps += 1
+        if self.source is not None:
+            self.source.step()
+        return self._augment(obs, bool(info.get("is_success", False))), reward, terminated, truncated, info
+
+    def render(self):
+        return self.env.render() if self.cameras else _BLANK_FRAME
+
+
+def _make_env(task: str, task_id: int, gym_kwargs: dict, cameras: bool, perception: PerceptionConfig | None,
+              max_steps: int | None) -> MetaworldStateExport:
+    from lerobot.envs.metaworld import MetaworldEnv
+
+    return MetaworldStateExport(MetaworldEnv(task=task, **gym_kwargs), task_id=task_id, cameras=cameras,
+                                perception=perception, max_steps=max_steps)
+
+
+@EnvConfig.register_subclass("metaworld_physvla")
+@dataclass
+class MetaworldPhysVLAEnvConfig(MetaworldEnvConfig):
+    """lerobot's `metaworld` env config plus the PhysVLA state export.
+
+    Attributes:
+        episode_length: the rollout's horizon, control steps (at most MetaWorld's 500); None: MetaWorld's 500.
+        cameras: render (as `metaworld`); false gives a state-only env whose observations are agent_pos (with
+            obs_type pixels_agent_pos) + environment_state (object and target xyz).
+        pose_bias_m, pose_noise_m, pose_lag_steps, pose_dropout: the perception model's faults on the object's and
+            the target's poses in physvla_state (sources/perception.py; as libero_physvla's); all 0: exact.
+        physvla_defaults: the corrector's fields this env needs (its action layout, core/config.py LAYOUTS; Branch
+            B's weighting), applied where the flags set none (scripts/lerobot_physvla_eval.py for_env).
+    """
+
+    task: str = "pick-place-v3"
+    episode_length: int | None = None
+    cameras: bool = True
+    pose_bias_m: float = 0.0
+    pose_noise_m: float = 0.0
+    pose_lag_steps: int = 0
+    pose_dropout: float = 0.0
+    physvla_defaults: ClassVar[dict] = {"layout": "metaworld", "weighting": "task_space"}
+
+    @property
+    def perception(self) -> PerceptionConfig:
+        return PerceptionConfig.from_flags(self)
+
+    @property
+    def horizon(self) -> int:
+        """The rollout's horizon, control steps."""
+        return METAWORLD_HORIZON if self.episode_length is None else min(self.episode_length, METAWORLD_HORIZON)
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.episode_length is not None and self.episode_length < 1:
+            raise ValueError(f"metaworld_physvla: episode_length must be >= 1 (or unset), got {self.episode_length}")
+        self.perception  # noqa: B018 - a fault out of range is a clear ValueError now, not in a worker
+        if not self.cameras:
+            for key in list(self.features):
+                if self.features[key].type == FeatureType.VISUAL:
+                    del self.features[key]
+            self.features["environment_state"] = PolicyFeature(type=FeatureType.ENV, shape=(ENV_STATE_DIM,))
+            self.features_map["environment_state"] = OBS_ENV_STATE
+            self.features_map = {k: v for k, v in self.features_map.items() if not v.startswith(OBS_IMAGE)}
+
+    def create_envs(self, n_envs: int, use_async_envs: bool = False):
+        """{task group: {task id: vector env}} as lerobot's create_metaworld_envs builds them (a group is a
+        difficulty, "easy", or one task; ids count within the group), each sub-env wrapped."""
+        from lerobot.envs.metaworld import DIFFICULTY_TO_TASKS
+        from lerobot.envs.utils import _LazyAsyncVectorEnv
+
+        if not self.task:
+            raise ValueError("metaworld_physvla requires --env.task (e.g. pick-place-v3)")
+        if not isinstance(n_envs, int) or n_envs <= 0:
+            raise ValueError(f"n_envs must be a positive int; got {n_envs}.")
+        env_cls = compat.vector_env_class(use_async_envs, n_envs)
+        groups = [t.strip() for t in self.task.split(",") if t.strip()]
+        out: dict[str, dict[int, object]] = {}
+        for group in groups:
+            out[group] = {}
+            for tid, task in enumerate(DIFFICULTY_TO_TASKS.get(group, [group])):
+                fns = [partial(_make_env, task, tid, dict(self.gym_kwargs), self.cameras, self.perception,
+                               self.horizon) for _ in range(n_envs)]
+                out[group][tid] = _LazyAsyncVectorEnv(fns) if env_cls is gym.vector.AsyncVectorEnv else env_cls(fns)
+        return out
+
+    def get_env_processors(self):
+        return PolicyProcessorPipeline(steps=[PhysVLAStateCaptureStep()]), PolicyProcessorPipeline(steps=[])
+
+
+def as_metaworld_physvla_env(env_cfg, given=()):
+    """A `metaworld` env config becomes `metaworld_physvla` with the same fields; others are returned as is.
+
+    given: the env fields set explicitly (`--env.<name>` flags): episode_length is kept only if it is one (lerobot's
+    `metaworld` ignores it and runs 500 steps; so does this env unless asked)."""
+    if type(env_cfg) is MetaworldEnvConfig:
+        fields = {f.name: getattr(env_cfg, f.name) for f in dataclasses.fields(MetaworldEnvConfig) if f.init}
+        fields.pop("features", None)
+        fields.pop("features_map", None)
+        if "episode_length" not in set(given):
+            fields["episode_length"] = None
+        return MetaworldPhysVLAEnvConfig(**fields)
+    return env_cfg
