@@ -4,8 +4,9 @@ A backbone is an object with `reset(seed)` (new episode) and `act(scene, state) 
 raw action for the current step, in the scene's action layout). The corrector never sees which
 kind it is.
 
-- Scripted experts (`ExpertBackbone`): experts.PickPlaceExpert with the paper's failure modes
-  injected (BACKBONES below), geometry from the scene (`scene.expert`).
+- Scripted experts (`ExpertBackbone`): experts.PickPlaceExpert (or the shape-planning expert, or on
+  MetaWorld the task's own scripted policy) with the paper's failure modes injected (BACKBONES below),
+  geometry from the scene (`scene.expert`).
 - Learned backbones (`LeRobotBackbone`): a LeRobot policy checkpoint (backbones/train_backbones.py)
   with its own pre/post-processors (normalisation), fed the state observation that
   `lerobot-eval --env.type=libero_physvla --env.cameras=false` gives it.
@@ -30,24 +31,36 @@ class ExpertBackbone:
     and optionally `draw_offset` (int, default 0): the episode on init state s draws its failures
     (noise, aim error, place bias, premature close) from seed s + draw_offset. The LIBERO init
     states are few (0-39 used, 40-49 untouched), so a fresh offset gives a block of failure draws
-    that no decision has looked at on init states that have been seen; and `teacher` ("bowl", the
-    default: sim/experts.py, the LIBERO-Spatial bowl expert; "shape": sim/shape_expert.py, which plans
-    each grasp from the object's shape and follows a goal's sub-goals: the other LIBERO suites)."""
+    that no decision has looked at on init states that have been seen; and `teacher` ("bowl": sim/experts.py,
+    the LIBERO-Spatial bowl expert; "shape": sim/shape_expert.py, which plans each grasp from the object's
+    shape and follows a goal's sub-goals: the other LIBERO suites; "metaworld": the task's own scripted policy
+    from metaworld.policies, sim/metaworld_expert.py, on the metaworld/<k> scenes only). Unnamed, the teacher
+    is the scene's own (`scene.teacher`: "metaworld" on MetaWorld scenes), else "bowl"."""
+
+    TEACHERS = ("bowl", "shape", "metaworld")
 
     def __init__(self, scene, failure: dict):
         from lerobot_physvla.sim.experts import ExpertConfig, PickPlaceExpert
 
         failure = dict(failure)
         self.draw_offset = int(failure.pop("draw_offset", 0))
-        self.teacher = str(failure.pop("teacher", "bowl"))
+        self.teacher = str(failure.pop("teacher", getattr(scene, "teacher", "bowl")))
         if self.teacher == "shape":
             from lerobot_physvla.sim.shape_expert import ShapeExpert, ShapeExpertConfig
 
             self.expert = ShapeExpert(layout=scene.layout, cfg=ShapeExpertConfig(**failure))
         elif self.teacher == "bowl":
             self.expert = PickPlaceExpert(layout=scene.layout, cfg=ExpertConfig(**{**scene.expert, **failure}))
+        elif self.teacher == "metaworld":
+            from lerobot_physvla.sim.metaworld_expert import MetaworldExpert, MetaworldExpertConfig
+
+            task = getattr(getattr(scene, "task", None), "name", None)
+            if not str(getattr(scene, "name", "")).startswith("metaworld/") or task is None:
+                raise ValueError(f"physvla: the metaworld teacher runs on the metaworld/<k> scenes only, not on "
+                                 f"{getattr(scene, 'name', scene)!r}")
+            self.expert = MetaworldExpert(task, MetaworldExpertConfig.from_failure(failure))
         else:
-            raise ValueError(f"physvla: unknown expert teacher {self.teacher!r}; choose bowl or shape")
+            raise ValueError(f"physvla: unknown expert teacher {self.teacher!r}; choose {', '.join(self.TEACHERS)}")
 
     def reset(self, seed: int) -> None:
         self.expert.reset(seed=seed + self.draw_offset)
@@ -55,6 +68,8 @@ class ExpertBackbone:
     def act(self, scene, state) -> np.ndarray:
         if self.teacher == "shape":
             return self.expert.act_source(scene.source)
+        if self.teacher == "metaworld":  # MetaWorld's 39-D observation of this step (the teacher copies it)
+            return self.expert.act(scene.raw_obs)
         return self.expert.act(state.eef_pos[0], state.obj_pos[0], state.target_pos[0])
 
 

@@ -1,7 +1,7 @@
 """Evaluation harness: units of work over (backbone, mode, scene, seed block), run in parallel.
 
 A unit runs its episodes in one process on a state-only scene (lerobot_physvla.sim.scenes: LIBERO,
-robosuite Lift, Fetch) with the core library alone (no LeRobot in the loop for scripted
+MetaWorld, robosuite Lift, Fetch) with the core library alone (no LeRobot in the loop for scripted
 backbones: the same corrector, state sources and metrics that `lerobot-eval
 --policy.postprocess=physvla` uses) and writes one JSON of per-episode records. Units already in the
 cache (outputs/eval/<study>/units, ignored by git) are skipped, so a killed sweep resumes where it
@@ -41,11 +41,13 @@ class Unit:
         backbone: backbone name (a key of BACKBONES, or a learned backbone's name).
         config_name, config: the configuration's hash (eval/store.py) and the corrector config
             (PhysVLAConfig.to_dict()).
-        task_id: LIBERO task id (the libero_* scenes); ignored by other scenes.
+        task_id: LIBERO task id (the libero_* scenes) or MetaWorld task index (the "metaworld" scene:
+            sim/metaworld_sim.py TASKS); ignored by other scenes.
         first_seed, episodes: the seed block.
         expert: ExpertConfig fields of the scripted backbone's failure modes.
-        scene: a LIBERO suite (with task_id: libero_spatial, libero_object, ...), "lift", "lift_plate", "fetch_pick_place" or
-            "so101_pick_place" (lerobot's robot action processor on the simulated SO-101: so101_robot.py).
+        scene: a LIBERO suite (with task_id: libero_spatial, libero_object, ...), "metaworld" (with task_id: scene
+            metaworld/<task_id>), "lift", "lift_plate", "fetch_pick_place" or "so101_pick_place" (lerobot's robot
+            action processor on the simulated SO-101: so101_robot.py).
         policy: checkpoint directory of a learned backbone ("" = scripted expert).
     """
 
@@ -61,12 +63,17 @@ class Unit:
 
     @property
     def scene_name(self) -> str:
-        return f"{self.scene}/{self.task_id}" if self.scene.startswith("libero_") else self.scene
+        return f"{self.scene}/{self.task_id}" if self._per_task else self.scene
+
+    @property
+    def _per_task(self) -> bool:
+        """The scene has tasks (LIBERO suites, MetaWorld): task_id picks one."""
+        return self.scene.startswith("libero_") or self.scene == "metaworld"
 
     @property
     def key(self) -> str:
         where = (f"t{self.task_id}" if self.scene == "libero_spatial" else
-                 f"{self.scene}_t{self.task_id}" if self.scene.startswith("libero_") else self.scene)
+                 f"{self.scene}_t{self.task_id}" if self._per_task else self.scene)
         return f"{self.backbone}__{self.config_name}__{where}__s{self.first_seed}-{self.first_seed + self.episodes - 1}"
 
 
@@ -93,7 +100,7 @@ def _backbone(unit: Unit, scene):
 def run_episode(scene, corrector, backbone, seed: int, perception=None) -> dict:
     """One episode; returns its record (success, reward, metrics, firing rates, timings).
 
-    Success: at the first successful step for scenes that stop on success (LIBERO, lift_plate),
+    Success: at the first successful step for scenes that stop on success (LIBERO, MetaWorld, lift_plate),
     else the scene's check at the last step (Lift, Fetch). perception: a sources.perception.Perception
     between the scene's state and the corrector (the backbone reads the scene's own state)."""
     from lerobot_physvla import metrics

@@ -60,8 +60,8 @@ ROLES = ("design", "confirm")
 
 @dataclass(frozen=True)
 class Block:
-    """A seed block: `scene`, its `tasks` (LIBERO task ids; [0] elsewhere), `seeds` (init states / expert
-    seeds) and the backbones that run on it."""
+    """A seed block: `scene`, its `tasks` (LIBERO task ids; MetaWorld task indices, sim/metaworld_sim.py TASKS;
+    [0] elsewhere), `seeds` (init states / expert seeds) and the backbones that run on it."""
 
     name: str
     scene: str

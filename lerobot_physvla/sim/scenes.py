@@ -4,11 +4,14 @@ A `Scene` is one env with its state source, seen the same way by every simulator
 starts a seeded, reproducible episode; `read()` gives the corrector's `PhysState` (B = 1);
 `step(action)` executes one action in the env's own layout and returns (success now, reward).
 The harness (eval/harness.py), the dataset recorder (backbones/record_dataset.py) and the tests
-drive LIBERO, robosuite Lift and gymnasium-robotics Fetch through it.
+drive LIBERO, MetaWorld, robosuite Lift and gymnasium-robotics Fetch through it.
 
 Scenes by name (`make_scene`):
     <suite>/<task id>          a LIBERO task (libero_spatial, libero_object, libero_goal, libero_10),
                                state-only, with lerobot's horizon for its suite
+    metaworld/<k>              a MetaWorld task the corrector models, k in 0-5 (metaworld_sim.py TASKS:
+                               pick-place, pick-place-wall, bin-picking, shelf-place, basketball,
+                               pick-out-of-hole), state-only, MetaWorld's horizon (500) and success
     lift, lift_plate           robosuite Lift, and Lift + place-on-plate (lift_sim.py)
     fetch_pick_place           gymnasium-robotics FetchPickAndPlace-v4 (fetch_sim.py)
 """
@@ -165,6 +168,10 @@ def make_scene(name: str) -> Scene:
         if not task.isdigit():
             raise ValueError(f"physvla: LIBERO scenes are named <suite>/<task id>, e.g. libero_spatial/0; got {name!r}")
         return LiberoScene(suite, int(task))
+    if name.startswith("metaworld"):
+        from lerobot_physvla.sim.metaworld_sim import MetaworldScene, scene_index
+
+        return MetaworldScene(scene_index(name))
     if name in ("lift", "lift_plate"):
         from lerobot_physvla.sim.lift_sim import LiftScene
 
@@ -174,5 +181,6 @@ def make_scene(name: str) -> Scene:
 
         return FetchScene()
     raise ValueError(
-        f"physvla: unknown scene {name!r}; choose libero_spatial/<0-9>, lift, lift_plate or fetch_pick_place"
+        f"physvla: unknown scene {name!r}; choose libero_spatial/<0-9> (or another LIBERO suite), metaworld/<0-5>, "
+        "lift, lift_plate or fetch_pick_place"
     )

@@ -148,3 +148,25 @@ def test_a_chunked_policy_gets_the_chunk_caps_and_every_other_backbone_the_caps(
     assert expert.caps == single.caps == cfg.caps  # act_single: n_action_steps 1
     assert chunked.caps == (1.0, 0.05, 0.0, 1.0)  # act_chunk executes 10 of its 20-step chunk
     assert chunked.replace(phase_caps=cfg.phase_caps, chunk_phase_caps=cfg.chunk_phase_caps) == cfg
+
+
+def test_a_metaworld_unit_runs_baseline_and_the_default_and_yields_records():
+    """One unit per configuration on metaworld/0 (pick-place), MetaWorld's own scripted policy as the teacher,
+    one seed, in this process (compute_unit: what a worker runs)."""
+    pytest.importorskip("metaworld")
+    import harness
+
+    from lerobot_physvla.core.config import preset
+
+    mw = {"layout": "metaworld", "weighting": "task_space"}  # a study's [scene_overrides] metaworld = {...}
+    configs = {"baseline": PhysVLAConfig.paper(mode="baseline", **mw), "default": preset("default", **mw)}
+    for name, cfg in configs.items():
+        unit = Unit("metaworld_clean", name, cfg.to_dict(), task_id=0, first_seed=0, episodes=1,
+                    expert={"teacher": "metaworld"}, scene="metaworld")
+        assert unit.scene_name == "metaworld/0" and unit.key == f"metaworld_clean__{name}__metaworld_t0__s0-0"
+        payload = harness.compute_unit(unit)
+        (rec,) = payload["records"]
+        assert (rec["scene"], rec["task_id"], rec["seed"], rec["config"]) == ("metaworld", 0, 0, name)
+        assert rec["success"] and rec["first_success_step"] == rec["steps"] < 500  # stops on MetaWorld's success
+        assert sum(rec["passthrough"].values()) == 0 and 0 < rec["efficiency"] <= 1
+        assert payload["unit"]["scene"] == "metaworld"
