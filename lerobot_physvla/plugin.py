@@ -2,9 +2,9 @@
 
 lerobot imports every installed distribution named `lerobot_env_*` at the start of its console
 scripts; ours (`lerobot_env_physvla`) calls `activate()`, which
-- registers the `libero_physvla` and `metaworld_physvla` env types, the processor steps (env: capture, policy:
-  corrector, robot: joint-target corrector), the `physvla_scripted` policy type and the `physvla_sim_so101` /
-  `physvla_sim_panda` robot types (always);
+- registers the `libero_physvla`, `metaworld_physvla` and `so101_physvla` env types, the processor steps (env:
+  capture, policy: corrector, robot: joint-target corrector), the `physvla_scripted` policy type and the
+  `physvla_sim_so101` / `physvla_sim_panda` robot types (always);
 - in `lerobot-eval` (and `lerobot-physvla-eval`) only: applies `--policy.postprocess` and
   `--physvla.*` (see `scripts/lerobot_physvla_eval.py`); in `lerobot-rollout`: the same flags plus
   the arm's (`scripts/lerobot_physvla_rollout.py`). No flag leaves lerobot untouched.
@@ -29,6 +29,7 @@ def activate(argv: list[str] | None = None) -> None:
     # registers the env type, the processor steps and the policy type
     from lerobot_physvla.envs import libero_physvla  # noqa: F401
     from lerobot_physvla.envs import metaworld_physvla  # noqa: F401
+    from lerobot_physvla.envs import so101_physvla  # noqa: F401
     from lerobot_physvla.policies import physvla_scripted  # noqa: F401
     from lerobot_physvla.processor import physvla_processor, physvla_robot_step  # noqa: F401
     from lerobot_physvla.robots import physvla_sim_panda, physvla_sim_so101  # noqa: F401  (robot types)

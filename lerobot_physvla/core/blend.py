@@ -17,7 +17,7 @@ from lerobot_physvla.core.state import GUARD_CLIPPED, GUARD_HELD, NONFINITE_OUTP
 
 
 @njit(cache=True, error_model="numpy")
-def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, geo, low, high, last, has_last):
+def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, geo, low, high, last, has_last, hold_tol):
     """Eq. 2 with the gripper rule and clipping for every env whose status is OK; an env whose
     result is not finite gets status NONFINITE_OUTPUT. Rows of other envs are left for `_guard`.
 
@@ -28,7 +28,8 @@ def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, geo, low
     horizontally or more than height above it (reach 0: everywhere in approach, the paper); in the
     grasp phase, where it is more than height above it (height 0: never). veto: 0 off, 1 on,
     2 on but never opening a gripper that holds: one whose last executed command (last (B, A),
-    has_last (B,)) lies more than half the action range from open.
+    has_last (B,)) lies more than hold_tol from open (ActionLayout.gripper_hold_tol: half the action range,
+    or of the open-to-closed span where the layout names its closed command).
     """
     out = np.empty_like(a_raw)
     dev = np.zeros(a_raw.shape[0])
@@ -41,7 +42,7 @@ def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, geo, low
             vetoed = veto > 0 and ((phase[i] == APPROACH and (veto_reach <= 0.0 or geo[i, 0] >= veto_reach or above))
                                    or (phase[i] == GRASP and above))
             if vetoed and veto == 2 and grip >= 0 and has_last[i]:
-                vetoed = abs(last[i, grip] - gripper_open) <= 0.5 * (high - low)  # holding: leave it closed
+                vetoed = abs(last[i, grip] - gripper_open) <= hold_tol  # holding: leave it closed
             for k in range(a_raw.shape[1]):
                 v = (1.0 - cap) * a_raw[i, k] + cap * a_cand[i, k]
                 if vetoed and k == grip:

@@ -47,6 +47,10 @@ class ActionLayout:
         metres_per_unit: metres of end-effector travel per action unit on the position
             channels (0.05 m for LIBERO / robosuite OSC_POSE).
         gripper_open: the gripper command value that means "open" (-1 in robosuite).
+        gripper_closed: the gripper command value that means "closed"; None: -gripper_open (a command
+            symmetric about 0, as robosuite's, MetaWorld's and Fetch's). A command on the closed side of the
+            midpoint of the two is a close (`closes`): lerobot-env-so101's absolute grasp in [0, 1] has
+            gripper_open 1, gripper_closed 0, a close below 0.5.
         low, high: the action space bounds (scalars, broadcast to every channel).
         absolute: False for delta layouts (the position/rotation channels are increments, so
             holding still is 0); True for absolute targets (holding still is the last target).
@@ -63,6 +67,7 @@ class ActionLayout:
     low: float = -1.0
     high: float = 1.0
     absolute: bool = False
+    gripper_closed: float | None = None
 
     def __post_init__(self) -> None:
         used = list(self.pos) + list(self.rot) + ([self.gripper] if self.gripper is not None else [])
@@ -76,6 +81,34 @@ class ActionLayout:
             raise ValueError(f"ActionLayout bounds must be finite, got [{self.low}, {self.high}]")
         if not self.low < self.high or not self.low <= self.gripper_open <= self.high:
             raise ValueError("need low < high and gripper_open within [low, high]")
+        if self.gripper_closed is not None and not (self.low <= self.gripper_closed <= self.high
+                                                    and self.gripper_closed != self.gripper_open):
+            raise ValueError(f"need gripper_closed within [low, high] and not gripper_open, got {self.gripper_closed}")
+
+    @property
+    def gripper_shut(self) -> float:
+        """The gripper command that means "closed" (gripper_closed, or -gripper_open where it is None)."""
+        return -self.gripper_open if self.gripper_closed is None else float(self.gripper_closed)
+
+    @property
+    def gripper_centre(self) -> float:
+        """The midpoint of the open and the closed command: a command beyond it, away from open, closes (0 for a
+        command symmetric about 0)."""
+        return 0.5 * (self.gripper_open + self.gripper_shut)
+
+    def closes(self, g):
+        """Whether gripper command(s) g close: on the closed side of `gripper_centre` (elementwise)."""
+        c = self.gripper_centre
+        return (np.asarray(g) - c) * (self.gripper_open - c) < 0
+
+    @property
+    def gripper_hold_tol(self) -> float:
+        """How far from open the last command may lie and still count as open for the veto's "never open a
+        gripper that holds" (core/blend.py): half the open-to-closed span where gripper_closed is set; half the
+        bounds' span where it is not (the layouts from before gripper_closed, whose commands span the bounds)."""
+        if self.gripper_closed is None:
+            return 0.5 * (self.high - self.low)
+        return 0.5 * abs(self.gripper_open - self.gripper_closed)
 
     @property
     def pos_index(self) -> np.ndarray:
@@ -118,6 +151,17 @@ FETCH_4D = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, metres_per_unit=0.05, g
 METAWORLD = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, metres_per_unit=0.01, gripper_open=-1.0)
 
 LAYOUTS: dict[str, ActionLayout] = {"libero_osc_pose": LIBERO_OSC_POSE, "fetch_4d": FETCH_4D, "metaworld": METAWORLD}
+
+
+def so101_layout(action_scale: float = 1.0) -> ActionLayout:
+    """lerobot-env-so101 (SO-101, position IK): [dx, dy, dz, grasp]. The IK target of the point the action moves
+    steps action * action_scale m a control step (the env config's `action_scale`, 1.0 by default; the package's
+    scripted controller and BC policy use 0.025), so metres_per_unit follows the env; the grasp point follows its
+    target at 0.8-1.0 of that speed (measured mid-workspace at 4 mm a step: x 0.90, y 1.00, z 0.81; the IK's
+    top-down constraint and the servos' lag). grasp: an absolute target in [0, 1], 1 open, 0 closed (a close below
+    0.5). Not in LAYOUTS: the env type so101_physvla passes the one of its config (sources/so101.py)."""
+    return ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, metres_per_unit=float(action_scale), gripper_open=1.0,
+                        gripper_closed=0.0)
 
 
 # The fields that belong to no one correction, by concept: (heading, fields). Each correction's own fields

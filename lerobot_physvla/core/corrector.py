@@ -42,7 +42,8 @@ from lerobot_physvla.core.state import (
 )
 from lerobot_physvla.core.tick import (
     D_DEV, D_GUARD, D_LIFT, D_OBJ, D_PHASE, D_R_EL, D_R_ENERGY, D_STATUS, D_TGT, FP_B, FP_CAP, FP_CAPS, FP_D_GRASP,
-    FP_GRIP_OPEN, FP_H_LIFT, FP_HIGH, FP_LOW, FP_LP, FP_VETO, IP_B, IP_BASELINE, IP_BRANCH_B, IP_FLAGS, IP_GRIP,
+    FP_GRIP_OPEN, FP_GRIP_TOL, FP_H_LIFT, FP_HIGH, FP_LOW, FP_LP, FP_VETO, IP_B, IP_BASELINE, IP_BRANCH_B, IP_FLAGS,
+    IP_GRIP,
     EPISODE_STEP, IP_LOWPASS, IP_LP_MASK, IP_N, IP_PHASE, IP_POS, IP_TEMPORAL, IP_VETO, N_DIAG, N_FP, N_IP, N_W,
     REC_HEADER, W_DIAG, W_EP, W_FP, W_HAS, W_HOLD, W_LAST, W_LP, W_MEM, W_NLP, W_NMEM, W_NPA, W_PA, W_ABS,
     correct_tick, record_tick, stream_tick,
@@ -390,9 +391,10 @@ class Corrector:
         fp[FP_VETO:FP_LP] = ((cfg.veto_height_m + e if cfg.veto_height_m > 0 else 0.0),
                              (cfg.veto_reach_m or (cfg.delta_grasp_m if e > 0 else 0.0)) + e,
                              cfg.veto_height_m, cfg.veto_reach_m)  # as configured: core/geometry.py derives from them
-        fp[FP_LP:N_FP] = (cfg.lowpass_alpha_max, cfg.lowpass_rough_lo, cfg.lowpass_rough_hi, lay.metres_per_unit,
-                          cfg.lowpass_space == "target", cfg.lowpass_speed_hi, cfg.lowpass_rough == "median",
-                          cfg.lowpass_lag == "compensate")
+        fp[FP_GRIP_TOL] = lay.gripper_hold_tol
+        fp[FP_LP:FP_GRIP_TOL] = (cfg.lowpass_alpha_max, cfg.lowpass_rough_lo, cfg.lowpass_rough_hi,
+                                 lay.metres_per_unit, cfg.lowpass_space == "target", cfg.lowpass_speed_hi,
+                                 cfg.lowpass_rough == "median", cfg.lowpass_lag == "compensate")
         return fp
 
     def _int_params(self, n: int) -> np.ndarray:
@@ -493,7 +495,7 @@ class Corrector:
                                        fp[FP_B:FP_CAPS], ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
             caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO]
             out, dev = blend(a_raw, a_phys, phase, status, caps, self._grip, fp[FP_GRIP_OPEN], int(ip[IP_VETO]), geo,
-                             fp[FP_LOW], fp[FP_HIGH], self._last_out, self._has_last)
+                             fp[FP_LOW], fp[FP_HIGH], self._last_out, self._has_last, fp[FP_GRIP_TOL])
             if ip[IP_LOWPASS]:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
                                  fp[FP_LP + 1], fp[FP_LP + 2], self._lp_mem, commit, dev, flat, ip[IP_PHASE + 1],

@@ -20,7 +20,8 @@ Float parameters `fp`: [0] delta_grasp (m), [1] h_lift (m), [2] cap c, [3] gripp
 [4] low, [5] high (action units), [6:10] Branch B [metres_per_unit, damping, eps (N m), r0 (N m)],
 [10:14] the authority per phase, [14:18] gripper veto [height, reach] (m, the pose error included),
 then the configuration's [veto_height_m, veto_reach_m] (core/geometry.py), [18:26] low-pass
-[alpha_max, lo, hi, metres_per_unit, 1 = target space, speed_hi, 1 = median, 1 = compensate].
+[alpha_max, lo, hi, metres_per_unit, 1 = target space, speed_hi, 1 = median, 1 = compensate], [26] how far
+from open the last gripper command may lie and count as open (ActionLayout.gripper_hold_tol, action units).
 """
 
 from __future__ import annotations
@@ -45,8 +46,8 @@ TICK_SOURCE_KEY = source_key(TICK_SOURCE_FILES, DISPATCH_SOURCE)
 (IP_PHASE, IP_B, IP_N, IP_POS, IP_FLAGS, IP_GRIP, IP_TEMPORAL, IP_BASELINE, IP_BRANCH_B, IP_VETO, IP_LOWPASS,
  IP_LP_MASK, N_IP) = (0, 7, 13, 14, 17, 19, 20, 21, 22, 23, 24, 25, 29)
 # layout of the float parameters
-(FP_D_GRASP, FP_H_LIFT, FP_CAP, FP_GRIP_OPEN, FP_LOW, FP_HIGH, FP_B, FP_CAPS, FP_VETO, FP_LP, N_FP) = (
-    0, 1, 2, 3, 4, 5, 6, 10, 14, 18, 26)
+(FP_D_GRASP, FP_H_LIFT, FP_CAP, FP_GRIP_OPEN, FP_LOW, FP_HIGH, FP_B, FP_CAPS, FP_VETO, FP_LP, FP_GRIP_TOL, N_FP) = (
+    0, 1, 2, 3, 4, 5, 6, 10, 14, 18, 26, 27)
 # columns of the diagnostics buffer (B, N_DIAG + A): phase (-1 where passed through), status
 # (REASONS code), guard (GUARDS code), d_obj_xy, d_tgt_xy, lift (m), |r_EL| (N m), r_energy (W),
 # deviation max|a - a_raw| (action units), sum of Branch B weights, then the A weights
@@ -114,7 +115,7 @@ def _compile(key: int):
                                        ip[IP_FLAGS:IP_GRIP], status, SINGULAR, INVALID_DT)
             caps = np.ones(4) if temporal else fp[FP_CAPS:FP_VETO]  # the temporal baseline is applied in full
             out, dev = blend(a_raw, a_phys, phase, status, caps, ip[IP_GRIP], fp[FP_GRIP_OPEN], ip[IP_VETO], geo,
-                             fp[FP_LOW], fp[FP_HIGH], last, has_last)
+                             fp[FP_LOW], fp[FP_HIGH], last, has_last, fp[FP_GRIP_TOL])
             if ip[IP_LOWPASS] != 0:
                 adaptive_lowpass(out, a_raw, phase, status, ip[IP_POS:IP_FLAGS], ip[IP_LP_MASK:N_IP], fp[FP_LP],
                                  fp[FP_LP + 1], fp[FP_LP + 2], lp_mem, commit, dev, flat, ip[IP_PHASE + 1], absolute,

@@ -156,7 +156,7 @@ def flagged_frames(raw: np.ndarray, states: np.ndarray, phase: np.ndarray, cfg: 
         return []
     n = n_joints_from_size(states.shape[1])
     f = field_offsets(n)
-    closing = raw[:, g] * lay.gripper_open < 0  # the command's sign is the "close" side
+    closing = lay.closes(raw[:, g])  # the command on the closed side of the open/closed midpoint
     onset_close = np.flatnonzero(closing & ~np.r_[False, closing[:-1]])
     onset_open = np.flatnonzero(~closing & np.r_[False, closing[:-1]])
     eef, obj = states[:, f["eef_pos"]:f["eef_pos"] + 3], states[:, f["obj_pos"]:f["obj_pos"] + 3]

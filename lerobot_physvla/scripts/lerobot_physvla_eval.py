@@ -2,8 +2,9 @@
 
 `activate_eval(argv)` strips our flags from argv (lerobot's parser would reject them) and, for
 `--policy.postprocess=physvla`, installs the eval hook of `compat`: a `libero` env becomes
-`libero_physvla` and a `metaworld` env `metaworld_physvla`, the corrector step is appended to the policy
-postprocessor (with the env's own fields, `physvla_defaults`: metaworld's layout, where no flag sets them), and
+`libero_physvla`, a `metaworld` env `metaworld_physvla` and an `so101` env `so101_physvla`, the corrector step is
+appended to the policy postprocessor (with the env's own fields, `physvla_defaults`: metaworld's layout, the so101
+layout at the env's action_scale, where no flag sets them), and
 per-episode diagnostics are written beside eval_info.json. Bad flags end the program with a one-line error
 and exit code 2.
 
@@ -22,6 +23,7 @@ from lerobot_physvla import compat
 from lerobot_physvla.diagnostics import EpisodeRecorder
 from lerobot_physvla.envs.libero_physvla import as_physvla_env
 from lerobot_physvla.envs.metaworld_physvla import as_metaworld_physvla_env
+from lerobot_physvla.envs.so101_physvla import as_so101_physvla_env
 from lerobot_physvla.flags import FlagError, build_config, split_argv
 from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep
 
@@ -92,7 +94,8 @@ def _write_report(out: Path, recorder, pcfg, plots: int = 10) -> None:
 
 def for_env(cfg, env_cfg, given=()):
     """The corrector's configuration for the evaluated env: the fields the env needs (its `physvla_defaults`, e.g.
-    metaworld_physvla's layout "metaworld" and weighting "task_space") where the flags did not set them (`given`:
+    metaworld_physvla's layout "metaworld" and weighting "task_space", so101_physvla's ActionLayout at its
+    action_scale) where the flags did not set them (`given`:
     the --physvla.<field> names); `cfg` itself for an env that needs none."""
     changes = {k: v for k, v in (getattr(env_cfg, "physvla_defaults", None) or {}).items() if k not in set(given)}
     return cfg.replace(**changes) if changes else cfg
@@ -127,8 +130,9 @@ def activate_eval(argv: list[str]) -> None:
     env_flags = {a.partition("=")[0].removeprefix("--env.") for a in rest if a.startswith("--env.")}
     evaluated: dict[str, object] = {}
 
-    def adapt_env(env_cfg):  # libero -> libero_physvla, metaworld -> metaworld_physvla
-        evaluated["env"] = as_metaworld_physvla_env(as_physvla_env(env_cfg), given=env_flags)
+    def adapt_env(env_cfg):  # libero -> libero_physvla, metaworld -> metaworld_physvla, so101 -> so101_physvla
+        adapted = as_metaworld_physvla_env(as_physvla_env(env_cfg), given=env_flags)
+        evaluated["env"] = as_so101_physvla_env(adapted, given=env_flags)
         return evaluated["env"]
 
     def make_step(actions_per_call: int = 1):  # the configuration for this policy (chunk_phase_caps) and env

@@ -35,6 +35,16 @@ from lerobot_physvla.core.state import PhysState
 
 TASKS: tuple[str, ...] = ("pick-place-v3", "pick-place-wall-v3", "bin-picking-v3", "shelf-place-v3", "basketball-v3",
                           "pick-out-of-hole-v3")
+# lerobot's task descriptions (lerobot/envs/metaworld_config.json TASK_DESCRIPTIONS; a test compares): what
+# lerobot-eval gives a language-conditioned policy. Copied, since a simulator here never imports lerobot.
+DESCRIPTIONS: dict[str, str] = {
+    "pick-place-v3": "Pick and place a puck to a goal",
+    "pick-place-wall-v3": "Pick a puck, bypass a wall and place the puck",
+    "bin-picking-v3": "Grasp the puck from one bin and place it into another bin",
+    "shelf-place-v3": "Pick and place a puck onto a shelf",
+    "basketball-v3": "Dunk the basketball into the basket",
+    "pick-out-of-hole-v3": "Pick up a puck from a hole",
+}
 HORIZON = 500  # SawyerXYZEnv.max_path_length
 MT1_SEED = 42  # lerobot's MetaworldEnv: metaworld.MT1(task, seed=42), train task 0
 
@@ -58,9 +68,7 @@ class MetaworldTask:
     @property
     def language(self) -> str:
         """lerobot's task description, what lerobot-eval gives a language-conditioned policy."""
-        from lerobot.envs.metaworld import TASK_DESCRIPTIONS
-
-        return TASK_DESCRIPTIONS[self.name]
+        return DESCRIPTIONS[self.name]
 
 
 def make_metaworld_env(task: str):

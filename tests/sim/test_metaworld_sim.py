@@ -209,3 +209,13 @@ def test_unsupported_fields_and_scenes_are_clear_errors(scene):
     with pytest.raises(ValueError, match="no metaworld teacher for 'door-open-v3'"):
         MetaworldExpert("door-open-v3")
     assert ExpertBackbone(scene, {"teacher": "metaworld", "draw_offset": 7}).draw_offset == 7
+
+
+def test_the_task_descriptions_are_lerobots():
+    from lerobot.envs.metaworld import TASK_DESCRIPTIONS
+
+    from lerobot_physvla.sim import metaworld_sim
+
+    assert set(metaworld_sim.DESCRIPTIONS) == set(metaworld_sim.TASKS)
+    for task, words in metaworld_sim.DESCRIPTIONS.items():
+        assert TASK_DESCRIPTIONS[task] == words

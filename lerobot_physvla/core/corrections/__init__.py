@@ -22,8 +22,8 @@ import importlib
 import numpy as np
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import (GRIPPER_OPEN, HIGH, LOW, METRES_PER_UNIT, PHASE_REF_OBJECT,
-                                                   POSE_ERROR_M, POSE_MAX_AGE)
+from lerobot_physvla.core.corrections.base import (GRIPPER_CLOSED, GRIPPER_OPEN, HIGH, LOW, METRES_PER_UNIT,
+                                                   PHASE_REF_OBJECT, POSE_ERROR_M, POSE_MAX_AGE)
 from lerobot_physvla.core.corrections.base import Correction  # noqa: F401  (re-exported)
 
 CORRECTIONS: tuple = tuple(importlib.import_module(f"{__name__}.{f.stem}").CORRECTION for f in slots.files())
@@ -53,6 +53,7 @@ def params(cfg, layout) -> np.ndarray:
     (units as its declaration names them; metres converted to action units where the name says _U)."""
     p = np.zeros(slots.N_PARAMS)
     p[METRES_PER_UNIT], p[GRIPPER_OPEN] = layout.metres_per_unit, layout.gripper_open
+    p[GRIPPER_CLOSED] = layout.gripper_shut
     p[LOW], p[HIGH] = layout.low, layout.high
     p[PHASE_REF_OBJECT] = cfg.phase_ref == "object"
     p[POSE_ERROR_M], p[POSE_MAX_AGE] = cfg.pose_error_m, cfg.pose_max_age_steps

@@ -39,8 +39,13 @@ EEF, OBJ, TGT = 0, 3, 6  # xyz triples, m
 D_OBJ_XY, D_TGT_XY, LIFT, FINGERS = 9, 10, 11, 12  # m
 N_GEO = 13
 # the shared parameter slots (slots.SHARED)
-METRES_PER_UNIT, GRIPPER_OPEN, LOW, HIGH, PHASE_REF_OBJECT, POSE_ERROR_M, POSE_MAX_AGE = (P_SLOTS[n] for n in (
-    "METRES_PER_UNIT", "GRIPPER_OPEN", "LOW", "HIGH", "PHASE_REF_OBJECT", "POSE_ERROR_M", "POSE_MAX_AGE"))
+METRES_PER_UNIT, GRIPPER_OPEN, LOW, HIGH, PHASE_REF_OBJECT, POSE_ERROR_M, POSE_MAX_AGE, GRIPPER_CLOSED = (
+    P_SLOTS[n] for n in ("METRES_PER_UNIT", "GRIPPER_OPEN", "LOW", "HIGH", "PHASE_REF_OBJECT", "POSE_ERROR_M",
+                         "POSE_MAX_AGE", "GRIPPER_CLOSED"))
+# A gripper command g closes where (g - c) (open - c) < 0, c = (open + closed) / 2 the midpoint of the layout's
+# open and closed commands (p[GRIPPER_OPEN], p[GRIPPER_CLOSED]); c = 0 exactly for a command symmetric about 0,
+# where this is the sign test g * open < 0. The kernels write it out (a helper here would be compiled into
+# them from another file).
 
 
 @dataclass(frozen=True)

@@ -29,8 +29,8 @@ rest, and the assist raised it for 22 steps: candidate 12's run of that episode 
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import (EEF, FINGERS, GRIPPER, GRIPPER_OPEN, LIFT, POSE_ERROR_M, Z, Correction,
-                                                   Field)
+from lerobot_physvla.core.corrections.base import (EEF, FINGERS, GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, LIFT,
+                                                   POSE_ERROR_M, Z, Correction, Field)
 from lerobot_physvla.core.corrections.release_assist import STILL_M
 from lerobot_physvla.core.phase import GRASP
 
@@ -53,7 +53,8 @@ def lift_assist(a_raw, a_phys, idx, geo, p, mem, commit):
     g, z = idx[GRIPPER], idx[Z]
     if g < 0:
         return
-    if not a_raw[g] * p[GRIPPER_OPEN] < 0.0:  # the policy commands open: no hold, the count restarts
+    c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])  # the command's midpoint (base.py): beyond it, a close
+    if not (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0:  # the policy commands open: no hold, the count restarts
         if commit:
             mem[LIFT_STALL] = 0.0
         return

@@ -30,8 +30,8 @@ still" means; the command is a proxy for it.
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_OPEN, LIFT, OBJ, POSE_ERROR_M, TGT, Correction,
-                                                   Field)
+from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, LIFT, OBJ, POSE_ERROR_M,
+                                                   TGT, Correction, Field)
 from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M
 from lerobot_physvla.core.phase import PLACE
 
@@ -54,7 +54,8 @@ def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
     if mem[STALL] >= p[ASSIST_STEPS]:  # latched: open for as long as the phase stays place
         a_phys[g] = p[GRIPPER_OPEN]
         return
-    closed = a_raw[g] * p[GRIPPER_OPEN] < 0.0
+    c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])  # the command's midpoint (base.py): beyond it, a close
+    closed = (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0
     tol = p[REDIRECT_TOL_M]
     ex, ey = geo[TGT] - geo[OBJ], geo[TGT + 1] - geo[OBJ + 1]
     dz = geo[OBJ + 2] - geo[TGT + 2]

@@ -25,7 +25,8 @@ steers to half the tolerance before it lets the policy's open through (not to it
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, GRIPPER, GRIPPER_OPEN, OBJ, POSE_ERROR_M, Z, Correction, Field
+from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, OBJ, POSE_ERROR_M, Z,
+                                                   Correction, Field)
 from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M, steer
 from lerobot_physvla.core.phase import GRASP, PLACE
 
@@ -44,7 +45,8 @@ def release_veto(a_raw, a_phys, idx, geo, p, mem, commit):
     g = idx[GRIPPER]
     miss = False  # the policy opens with the object's centre beyond tol of the target's
     carry = p[RELEASE_CARRY] > 0.5
-    if g >= 0 and a_raw[g] * p[GRIPPER_OPEN] > 0.0:
+    c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])  # the command's midpoint (base.py): open side beyond it
+    if g >= 0 and (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) > 0.0:
         tol = p[REDIRECT_TOL_M]
         if carry and mem[HOLD] > 0.0:
             tol = 0.5 * tol  # a hold under way steers to half the tolerance
@@ -52,7 +54,7 @@ def release_veto(a_raw, a_phys, idx, geo, p, mem, commit):
         k, ex, ey = steer(geo, p, tol)
         miss = k > 0.0
         if miss and mem[HOLD] < p[HOLD_STEPS]:
-            a_phys[g] = -p[GRIPPER_OPEN]
+            a_phys[g] = p[GRIPPER_CLOSED]
             a_phys[idx[0]] = k * ex
             a_phys[idx[1]] = k * ey
             if carry and a_phys[idx[Z]] > 0.0:

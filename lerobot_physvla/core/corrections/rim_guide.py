@@ -41,8 +41,8 @@ on init states 20-24; not shipped, off in every preset.
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_OPEN, METRES_PER_UNIT, OBJ, POSE_ERROR_M, X, Y,
-                                                   Correction, Field)
+from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, METRES_PER_UNIT, OBJ,
+                                                   POSE_ERROR_M, X, Y, Correction, Field)
 from lerobot_physvla.core.phase import APPROACH, GRASP
 
 # the distance from the object's origin the hand is pulled to; the pose error it tolerates; the zone beside the object:
@@ -83,7 +83,8 @@ def _where(a_raw, idx, geo, p):
     (under RIM_HEIGHT_M above the origin) with the policy not commanding closed."""
     dx, dy = geo[EEF] - geo[OBJ], geo[EEF + 1] - geo[OBJ + 1]
     g = idx[GRIPPER]
-    closing = g >= 0 and a_raw[g] * p[GRIPPER_OPEN] < 0.0
+    c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])  # the command's midpoint (base.py): beyond it, a close
+    closing = g >= 0 and (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0
     return dx, dy, (dx * dx + dy * dy) ** 0.5, geo[EEF + 2] - geo[OBJ + 2] < p[RIM_HEIGHT_M] and not closing
 
 

@@ -21,9 +21,10 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 NOT_CORRECTIONS = {"__init__.py", "base.py", "slots.py"}
 # the shared parameter slots, first in p: the layout's scale and bounds, the place rule's choice, the phase
-# machine's reference point (PhysVLAConfig.phase_ref), the pose error the corrections tolerate (m) and the
-# oldest pose they act on (control steps)
-SHARED = ("METRES_PER_UNIT", "GRIPPER_OPEN", "LOW", "HIGH", "PHASE_REF_OBJECT", "POSE_ERROR_M", "POSE_MAX_AGE")
+# machine's reference point (PhysVLAConfig.phase_ref), the pose error the corrections tolerate (m), the
+# oldest pose they act on (control steps) and the layout's closed gripper command (ActionLayout.gripper_shut)
+SHARED = ("METRES_PER_UNIT", "GRIPPER_OPEN", "LOW", "HIGH", "PHASE_REF_OBJECT", "POSE_ERROR_M", "POSE_MAX_AGE",
+          "GRIPPER_CLOSED")
 
 
 def files() -> list[Path]:
