@@ -22,12 +22,13 @@ def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, geo, low
     result is not finite gets status NONFINITE_OUTPUT. Rows of other envs are left for `_guard`.
 
     caps (4,): the authority c per phase. veto: the gripper rule `veto` sets the gripper to open
-    in full (never blended) where no grasp can close on the object; geo (B, 6) [d_obj_xy, d_tgt_xy,
+    in full (never blended) where no grasp can close on the object; geo (B, 7) [d_obj_xy, d_tgt_xy,
     lift, eef height above the object's origin, veto height, veto reach] (m, the last two each env's own:
-    core/geometry.py) says where that is: in the approach phase, wherever the hand is reach or more from the object
-    horizontally or more than height above it (reach 0: everywhere in approach, the paper); in the
-    grasp phase, where it is more than height above it (height 0: never). veto: 0 off, 1 on,
-    2 on but never opening a gripper that holds: one whose last executed command (last (B, A),
+    core/geometry.py), then 1.0 where the policy's close is timed to the hand's descent onto the object
+    (corrections/approach_veto.py timed_close) says where that is: in the approach phase, wherever the hand is reach
+    or more from the object horizontally or more than height above it (reach 0: everywhere in approach, the paper);
+    in the grasp phase, where it is more than height above it (height 0: never), unless the close is timed.
+    veto: 0 off, 1 on, 2 on but never opening a gripper that holds: one whose last executed command (last (B, A),
     has_last (B,)) lies more than hold_tol from open (ActionLayout.gripper_hold_tol: half the action range,
     or of the open-to-closed span where the layout names its closed command).
     """
@@ -40,7 +41,7 @@ def blend(a_raw, a_cand, phase, status, caps, grip, gripper_open, veto, geo, low
             veto_height, veto_reach = geo[i, 4], geo[i, 5]
             above = veto_height > 0.0 and geo[i, 3] > veto_height
             vetoed = veto > 0 and ((phase[i] == APPROACH and (veto_reach <= 0.0 or geo[i, 0] >= veto_reach or above))
-                                   or (phase[i] == GRASP and above))
+                                   or (phase[i] == GRASP and above and not geo[i, 6] > 0.5))
             if vetoed and veto == 2 and grip >= 0 and has_last[i]:
                 vetoed = abs(last[i, grip] - gripper_open) <= hold_tol  # holding: leave it closed
             for k in range(a_raw.shape[1]):

@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 
 from lerobot_physvla.core.corrections import CORRECTIONS, slots
+from lerobot_physvla.core.corrections.approach_veto import timed_close
 from lerobot_physvla.core.corrections.base import (D_OBJ_XY, D_TGT_XY, EEF, FINGERS, HIGH, LIFT, LOW, N_GEO, OBJ,
                                                    PHASE_REF_OBJECT, POSE_MAX_AGE, TGT)
 from lerobot_physvla.core.corrections.release_veto import RELEASE_CARRY, carried_phase
@@ -115,17 +116,22 @@ def _compile(key: int):
         """Validity, geometry, phase and Branch A (or the temporal EMA) for B envs.
 
         flat: (B, L) packed states; o: offsets of [valid, eef_pos, obj_pos, obj_rest_z, target_pos, pose_age, scene]
-        (scene -1: the distances as configured); idx, p: see corrections/base.py; d_grasp, h_lift (m): eq. 3's;
+        (scene -1: the distances as configured), then of [dt, qdot, M, bias, tau, J_pos] and the joint count n
+        (tick.py's ip[0:14]; the hand's vertical velocity: J_pos's z row times qdot); idx, p: see
+        corrections/base.py; d_grasp, h_lift (m): eq. 3's;
         veto (4,): the gripper veto's [height, reach] (m) and the configuration's (core/geometry.py);
         mem: (B, N_MEM) per-env memory.
-        Returns (a_phys (B, A), phase (B,) int8, geo (B, 6) [d_obj_xy, d_tgt_xy, lift, height of the
-        end-effector above the object's origin, veto height, veto reach] m, status (B,) int8).
+        Returns (a_phys (B, A), phase (B,) int8, geo (B, 7) [d_obj_xy, d_tgt_xy, lift, height of the
+        end-effector above the object's origin, veto height, veto reach] m and 1.0 where the policy's close is timed
+        to the hand's descent onto the object (the height veto leaves it alone: corrections/approach_veto.py), else
+        0.0, status (B,) int8).
         """
         key  # noqa: B018 - read, so it is in the closure and hence in numba's cache key
         b, a_dim = a_raw.shape
         a_phys = np.empty_like(a_raw)
         phase = np.full(b, -1, np.int8)
-        geo = np.full((b, 6), np.nan)  # d_obj_xy, d_tgt_xy, lift, eef height above the object, veto height, reach (m)
+        geo = np.full((b, 7), np.nan)  # d_obj_xy, d_tgt_xy, lift, eef height above the object, veto height, reach (m),
+        # 1.0 where the policy's close is timed to the hand's descent (corrections/approach_veto.py timed_close)
         status = np.zeros(b, np.int8)
         g = np.empty(N_GEO)
         pe = np.empty_like(p)  # an env's parameters with its scene's distances (core/geometry.py)
@@ -176,6 +182,10 @@ def _compile(key: int):
             if q[RELEASE_CARRY] > 0.5 and q[ON_RELEASE_VETO] > 0.5:
                 ph = carried_phase(ph, g, q, mem[i], commit)
             phase[i] = ph
+            v_z = 0.0  # the end-effector's vertical velocity, J_pos[2] . qdot (m/s; 0 for a state without dynamics)
+            for j in range(o[13]):
+                v_z += row[o[12] + 2 * o[13] + j] * row[o[8] + j]
+            geo[i, 6] = timed_close(a_raw[i], idx, q, ph, geo[i, 3], v_z, veto_i[0], mem[i], commit)
             if temporal:
                 temporal_row(a_raw[i], a_phys[i], idx, g, q, mem[i], commit)
             else:

@@ -481,7 +481,7 @@ class Corrector:
         cfg, fp = self.cfg, self._fp
         t0 = time.perf_counter()
         temporal, baseline = bool(ip[IP_TEMPORAL]), bool(ip[IP_BASELINE])
-        a_phys, phase, geo, status = phase_step(a_raw, flat, ip[IP_PHASE:IP_B], self._idx, self._p_a,
+        a_phys, phase, geo, status = phase_step(a_raw, flat, ip[IP_PHASE:IP_N + 1], self._idx, self._p_a,
                                                 fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_VETO:FP_LP], self._mem, commit,
                                                 temporal)
         t1 = time.perf_counter()

@@ -101,7 +101,7 @@ def _compile(key: int):
         temporal = ip[IP_TEMPORAL] != 0
         baseline = ip[IP_BASELINE] != 0
         a_phys, phase, geo, status = phase_step(
-            a_raw, flat, ip[IP_PHASE:IP_B], idx, p_a, fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_VETO:FP_LP], mem, commit,
+            a_raw, flat, ip[IP_PHASE:IP_N + 1], idx, p_a, fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_VETO:FP_LP], mem, commit,
             temporal)
         w = np.zeros_like(a_raw)
         r = np.full((b, 2), np.nan)

@@ -238,6 +238,37 @@ def test_the_veto_never_opens_a_gripper_that_holds_when_told_so():
     assert held(close, far)[0, 6] == -1.0
 
 
+def test_the_height_veto_spares_a_close_begun_on_the_way_down_onto_the_object():
+    """A close the policy begins in the grasp phase while the hand comes down fast enough to be at the veto height
+    by the time the fingers shut (corrections/approach_veto.py timed_close) is timed to the descent: the height veto
+    leaves it alone (MetaWorld's shelf-place policy closes ~10 cm above its block at ~0.8 m/s). One begun at rest
+    stays vetoed step by step, also once the hand comes down."""
+    close, open_ = RAW.copy(), RAW.copy()
+    close[0, 6], open_[0, 6] = 1.0, -1.0  # robosuite: +1 closes
+
+    def at(z, v_z):  # grasp phase, the hand z above the object's origin moving at v_z (m/s): J_pos[2] . qdot
+        st = make_state(eef=(0.01, 0, 0.9 + z), obj=(0.0, 0.0, 0.9))
+        st.J_pos[:], st.qdot[:] = 0.0, 0.0
+        st.J_pos[0, 2, 0], st.qdot[0, 0] = 1.0, v_z
+        return st
+
+    cfg = PhysVLAConfig.paper(mode="phys", phase_caps=(0.0,) * 4, gripper_rule="veto", veto_height_m=0.06,
+                              veto_close_lead_s=0.1)
+    off = Corrector(cfg.replace(veto_close_lead_s=0.0))  # off (every preset): the close is held as before
+    assert off(close, at(0.10, -0.8))[0, 6] == -1.0
+    for profile in (False, True):  # the one-call tick and the staged twin
+        c = Corrector(cfg, profile=profile)
+        assert c(close, at(0.10, -0.8))[0, 6] == 1.0  # 10 cm up, 8 cm down in 0.1 s: timed
+        c.reset()
+        assert c(close, at(0.10, -0.1))[0, 6] == -1.0  # descending slowly: vetoed
+        assert c(close, at(0.09, -0.8))[0, 6] == -1.0  # the same close, the hand now fast: still vetoed
+        assert c(close, at(0.05, -0.8))[0, 6] == 1.0  # below the veto height: as before
+        c(open_, at(0.10, 0.0))  # the policy opens: the next close is judged afresh
+        assert c(close, at(0.10, -0.8))[0, 6] == 1.0
+        c.reset()
+        assert c(close, at(0.30, -0.8))[0, 6] == -1.0  # too high to get there in time: vetoed
+
+
 def test_veto_reach_spares_a_low_close_within_reach_of_a_rim():
     close = RAW.copy()
     close[0, 6] = 1.0  # robosuite: +1 closes

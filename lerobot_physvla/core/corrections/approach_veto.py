@@ -1,10 +1,41 @@
 """Approach: the premature-grasp veto (App. A). Far from the object (d_obj_xy >= delta_grasp)
-no grasp can succeed, so the gripper command is set to open."""
+no grasp can succeed, so the gripper command is set to open.
+
+The gripper rule `veto` (core/blend.py) also holds back a close in the grasp phase from a hand more than the veto
+height above the object's origin. A close is not instantaneous: the hand keeps moving while the fingers shut, so a
+policy that closes on its way down onto the object (MetaWorld's scripted shelf-place and basketball policies close
+~10 cm above it, descending at ~0.8 m/s, and rise again the moment they reach it) times the close to the descent,
+and a height veto delays it until the hand leaves before the fingers have shut. `timed_close` tells such a close
+apart, at the step the policy begins it:
+
+    timed:  in the grasp phase, h > veto height >= h + min(v_z, 0) * CLOSE_S   (h: the hand's height above the
+            object's origin, m; v_z: its vertical velocity, m/s, J_pos[2] . qdot)
+            = the hand, coming down as it moves now, is at the veto height by the time the fingers shut;
+            the height veto leaves it alone for as long as the policy keeps closing;
+    not:    begun elsewhere (approach, below the veto height, or hovering, rising, descending slowly above it): the
+            veto judges it step by step as before, also once the hand comes down later (a close begun at rest above
+            the object, e.g. a premature one, does not become timed by a descent that follows it).
+
+CLOSE_S is `veto_close_lead_s` (0 = off, every preset: the rule as before). A state without the arm's velocity
+(qdot or J_pos zero) reads v_z = 0: no close is timed, the rule as before.
+
+Traced failure (MetaWorld shelf-place, design seeds 0-9, eval/studies/metaworld.toml): the scripted policy begins
+its close ~10 cm above the block, coming down at 0.6-0.8 m/s; the height veto (6 cm) holds it 4-5 steps and the
+fingers are still 5.8-6.1 cm apart (baseline: 3.5-4.5, closed on the 4 cm block) when the policy rises; the block
+slips out: the clean policy 10/10 -> 1/10 under the shipped default. With CLOSE_S = 0.1 s (the Sawyer's fingers take
+9 steps of 12.5 ms to close across that block) it is 10/10 again on those seeds.
+"""
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import GRIPPER, GRIPPER_OPEN, Correction
-from lerobot_physvla.core.phase import APPROACH
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, Correction, Field
+from lerobot_physvla.core.phase import APPROACH, GRASP
+
+PARAMS = ("CLOSE_S",)  # veto_close_lead_s: how long the fingers take to shut on the object, s (0: off)
+MEMORY = (("VETO_CLOSE", 1),)  # the policy's current close: 0 none, 1 timed to the descent, 2 judged step by step
+(CLOSE_S,) = slots.params(__file__)
+(VETO_CLOSE,) = slots.memory(__file__)
 
 
 @njit(error_model="numpy")
@@ -14,4 +45,37 @@ def approach_veto(a_raw, a_phys, idx, geo, p, mem, commit):
         a_phys[idx[GRIPPER]] = p[GRIPPER_OPEN]
 
 
-CORRECTION = Correction("approach_veto", APPROACH, 0, approach_veto)
+@njit(error_model="numpy")
+def timed_close(a_raw, idx, p, phase, height, v_z, veto_height, mem, commit):
+    """Whether the policy's close is timed to the hand's descent onto the object (module doc): 1.0 or 0.0.
+    height: the hand above the object's origin (m); v_z: its vertical velocity (m/s); veto_height: this env's (m,
+    0: off). On commit, mem[VETO_CLOSE] keeps the judgement of the close until the policy stops closing."""
+    g = idx[GRIPPER]
+    if g < 0:
+        return 0.0
+    c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])  # the command's midpoint (base.py): beyond it, a close
+    if not (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0:  # not closing: no close to judge
+        if commit:
+            mem[VETO_CLOSE] = 0.0
+        return 0.0
+    state = mem[VETO_CLOSE]
+    if state < 0.5:  # the close begins now
+        timed = (p[CLOSE_S] > 0.0 and phase == GRASP and veto_height > 0.0 and height > veto_height
+                 and height + min(v_z, 0.0) * p[CLOSE_S] <= veto_height)
+        state = 1.0 if timed else 2.0
+        if commit:
+            mem[VETO_CLOSE] = state
+    return 1.0 if state < 1.5 else 0.0
+
+
+CORRECTION = Correction("approach_veto", APPROACH, 0, approach_veto, values={"CLOSE_S": lambda c, lay: c.veto_close_lead_s},
+                        fields=(Field("veto_close_lead_s", float, 0.0, 0.0, "the gripper veto leaves alone a close the "
+                                      "policy begins above the veto height while coming down fast enough to be there "
+                                      "this many seconds later (the fingers' closing time), s; 0 = off"),),
+                        check=lambda c: _check(c))
+
+
+def _check(c) -> None:
+    if not 0.0 <= c.veto_close_lead_s <= 1.0:
+        raise ValueError(f"physvla: veto_close_lead_s is the fingers' closing time in seconds, in [0, 1]; got "
+                         f"{c.veto_close_lead_s}")
