@@ -22,11 +22,9 @@ included) stays exact:
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from dataclasses import dataclass
 from functools import partial
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
@@ -38,20 +36,21 @@ from lerobot.processor.env_processor import LiberoProcessorStep
 from lerobot.utils.constants import OBS_ENV_STATE, OBS_IMAGES
 
 from lerobot_physvla import compat
-from lerobot_physvla.processor.physvla_processor import EXTRA_KEY, STATE_KEY, PhysVLAStateCaptureStep
-from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID, field_offsets, packed_size
-from lerobot_physvla.sources.perception import Perception, PerceptionConfig
+from lerobot_physvla.core.state import field_offsets
+from lerobot_physvla.envs.state_export import StateExport
+from lerobot_physvla.processor.physvla_processor import PhysVLAStateCaptureStep
+from lerobot_physvla.sources.perception import PerceptionConfig
 
 N_JOINTS = 7  # the Panda of LIBERO
 ENV_STATE_DIM = 6  # object xyz, target xyz
 _BLANK_FRAME = np.zeros((64, 64, 3), np.uint8)  # what render() shows with cameras off
 _F = field_offsets(N_JOINTS)
 _OBJ, _TGT = _F["obj_pos"], _F["target_pos"]
-_WARNED_GOALS: set[str] = set()  # goals outside the model already said, once per process
 
 
-class PhysVLAStateExport(gym.Wrapper):
-    """Adds the physical state of one LIBERO sub-env to its observations (see module docstring).
+class PhysVLAStateExport(StateExport):
+    """Adds the physical state of one LIBERO sub-env to its observations (see module docstring and
+    envs/state_export.py for what every env type's export shares).
 
     Attributes:
         cameras: False builds LIBERO with no renderer and returns no pixels.
@@ -63,26 +62,18 @@ class PhysVLAStateExport(gym.Wrapper):
     """
 
     def __init__(self, env, cameras: bool = True, perception: PerceptionConfig | None = None):
-        super().__init__(env)
+        super().__init__(env, N_JOINTS, 7, int(getattr(env.unwrapped, "task_id", -1)), perception)
         self.cameras = cameras
-        self.perception = None if perception is None or perception.exact else Perception(perception)
-        self.source = None
-        self.read_failures = 0  # reads of the state source that raised (those rows export valid = 0)
-        self.unsupported_goal: str | None = None
-        self._steps = 0  # control steps since the last reset: a row with no source still counts them
-        self._last_action = np.zeros(7)
         inner = env.unwrapped
-        self.task_id = int(getattr(inner, "task_id", -1))
         obs_space = dict(env.observation_space.spaces)
         if not cameras:
             obs_space.pop("pixels", None)
             inner.camera_name = []  # LiberoEnv._format_raw_obs then reads no camera
             obs_space["environment_state"] = spaces.Box(-np.inf, np.inf, (ENV_STATE_DIM,), np.float64)
-        rs = dict(obs_space["robot_state"].spaces) if "robot_state" in obs_space else {}
-        rs[STATE_KEY] = spaces.Box(-np.inf, np.inf, (packed_size(N_JOINTS),), np.float64)
-        rs[EXTRA_KEY] = spaces.Box(-np.inf, np.inf, (2 + 7,), np.float64)
-        obs_space["robot_state"] = spaces.Dict(rs)
-        self.observation_space = spaces.Dict(obs_space)
+        self.observation_space = self._state_spaces(obs_space)
+
+    def control_dt(self) -> float:
+        return 1.0 / float(getattr(self.env.unwrapped, "control_freq", 20) or 20)
 
     def _build_without_renderer(self) -> None:
         inner = self.env.unwrapped
@@ -101,25 +92,8 @@ class PhysVLAStateExport(gym.Wrapper):
         obs = dict(obs)
         if not self.cameras:
             obs.pop("pixels", None)
-        row = None
-        if self.source is not None:
-            try:
-                row = self.source.read_packed()
-            except Exception as err:  # noqa: BLE001 - do-no-harm: an unreadable state turns correction off
-                self.read_failures += 1
-                if self.read_failures == 1:
-                    warnings.warn(f"physvla: the state source failed ({err!r}); the corrector passes actions "
-                                  "through while it does", RuntimeWarning, stacklevel=2)
-        if row is None or row.shape != (packed_size(N_JOINTS),):
-            row = np.zeros(packed_size(N_JOINTS))  # valid = 0: the corrector passes through
-            row[_F["episode_step"]] = self._steps  # episodes still split where they do
-            row[_F["dt"]] = 1.0 / float(getattr(self.env.unwrapped, "control_freq", 20) or 20)
-            if self.unsupported_goal is not None:
-                row[_F["valid"]] = UNSUPPORTED_GOAL_VALID
-        rs = dict(obs.get("robot_state", {}))
-        rs[STATE_KEY] = row if self.perception is None else self.perception.apply(row[None])[0]
-        rs[EXTRA_KEY] = np.concatenate([[self.task_id, float(success)], self._last_action])
-        obs["robot_state"] = rs
+        row = self._read_row()
+        obs = self._export(obs, success, row)
         if not self.cameras:  # object xyz, target xyz
             obs["environment_state"] = np.concatenate([row[_OBJ : _OBJ + 3], row[_TGT : _TGT + 3]])
         return obs
@@ -130,28 +104,22 @@ class PhysVLAStateExport(gym.Wrapper):
         if not self.cameras:
             self._build_without_renderer()
         obs, info = self.env.reset(**kwargs)
-        self._steps = 0
+        self._begin_episode(kwargs.get("seed"))
         try:  # a hard reset rebuilds LIBERO's model: read it afresh
             self.source = RobosuiteStateSource(self.env.unwrapped._env.env)
             self.source.reset()
         except UnsupportedGoal as e:  # a task outside the model: said once, its rows marked, actions passed
-            self.source, self.unsupported_goal = None, e.goal
-            if e.goal not in _WARNED_GOALS:
-                _WARNED_GOALS.add(e.goal)
-                warnings.warn(f"physvla: task {self.task_id} ({getattr(self.env.unwrapped, 'task', '?')}): "
-                              f"{str(e).removeprefix('physvla: ')} (counted as unsupported_goal)", RuntimeWarning,
-                              stacklevel=2)
+            self.source = None
+            self._unsupported(e.goal, f"physvla: task {self.task_id} ({getattr(self.env.unwrapped, 'task', '?')}): "
+                                      f"{str(e).removeprefix('physvla: ')} (counted as unsupported_goal)")
             info = {**info, "physvla_unsupported_goal": e.goal}
         except Exception as e:  # noqa: BLE001 - do-no-harm: no state -> the corrector passes through
             self.source = None
             info = {**info, "physvla_state_error": repr(e)}
-        self._last_action = np.zeros(7)
-        if self.perception is not None:
-            self.perception.reset(seed=kwargs.get("seed"))
         return self._augment(obs, False), info
 
     def step(self, action):
-        self._last_action = np.asarray(action, dtype=np.float64).copy()
+        self._executed(action)
         obs, reward, terminated, truncated, info = self.env.step(action)
         self._steps += 1
         if self.source is not None:

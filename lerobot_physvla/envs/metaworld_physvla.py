@@ -22,7 +22,6 @@ perception model between the simulator and physvla_state, as libero_physvla's do
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from dataclasses import dataclass
 from functools import partial
 from typing import ClassVar
@@ -38,9 +37,10 @@ from lerobot.processor import PolicyProcessorPipeline
 from lerobot.utils.constants import OBS_ENV_STATE, OBS_IMAGE
 
 from lerobot_physvla import compat
-from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID, field_offsets, packed_size
-from lerobot_physvla.processor.physvla_processor import EXTRA_KEY, STATE_KEY, PhysVLAStateCaptureStep
-from lerobot_physvla.sources.perception import Perception, PerceptionConfig
+from lerobot_physvla.core.state import field_offsets
+from lerobot_physvla.envs.state_export import StateExport
+from lerobot_physvla.processor.physvla_processor import PhysVLAStateCaptureStep
+from lerobot_physvla.sources.perception import PerceptionConfig
 
 N_JOINTS = 7  # the Sawyer of MetaWorld
 ACTION_DIM = 4  # dx, dy, dz, gripper
@@ -49,14 +49,13 @@ METAWORLD_HORIZON = 500  # SawyerXYZEnv.max_path_length: stepping past it raises
 _BLANK_FRAME = np.zeros((64, 64, 3), np.uint8)  # what render() shows with cameras off
 _F = field_offsets(N_JOINTS)
 _OBJ, _TGT = _F["obj_pos"], _F["target_pos"]
-_WARNED_GOALS: set[str] = set()  # tasks outside the model already said, once per process
 
 
 def _no_reset(*args, **kwargs):
     return None, {}
 
 
-class MetaworldStateExport(gym.Wrapper):
+class MetaworldStateExport(StateExport):
     """Adds the physical state of one MetaWorld sub-env to its observations (see module docstring).
 
     Attributes:
@@ -72,29 +71,21 @@ class MetaworldStateExport(gym.Wrapper):
 
     def __init__(self, env, task_id: int = 0, cameras: bool = True, perception: PerceptionConfig | None = None,
                  max_steps: int | None = None):
-        super().__init__(env)
+        super().__init__(env, N_JOINTS, ACTION_DIM, task_id, perception)
         inner = env.unwrapped
         self.cameras = cameras
-        self.task_id = int(task_id)
         self.task = str(getattr(inner, "task", ""))
-        self.perception = None if perception is None or perception.exact else Perception(perception)
-        self.source = None
-        self.read_failures = 0
-        self.unsupported_goal: str | None = None
         self._sim = None  # the SawyerXYZEnv the source reads (MetaworldEnv builds it at its first reset)
-        self._steps = 0  # control steps since the last reset: a row with no source still counts them
-        self._last_action = np.zeros(ACTION_DIM)
         horizon = int(getattr(inner, "_max_episode_steps", METAWORLD_HORIZON))
         self._max_episode_steps = horizon if max_steps is None else min(int(max_steps), METAWORLD_HORIZON)
         obs_space = dict(env.observation_space.spaces)
         if not cameras:
             obs_space.pop("pixels", None)
             obs_space["environment_state"] = spaces.Box(-np.inf, np.inf, (ENV_STATE_DIM,), np.float64)
-        rs = dict(obs_space["robot_state"].spaces) if "robot_state" in obs_space else {}
-        rs[STATE_KEY] = spaces.Box(-np.inf, np.inf, (packed_size(N_JOINTS),), np.float64)
-        rs[EXTRA_KEY] = spaces.Box(-np.inf, np.inf, (2 + ACTION_DIM,), np.float64)
-        obs_space["robot_state"] = spaces.Dict(rs)
-        self.observation_space = spaces.Dict(obs_space)
+        self.observation_space = self._state_spaces(obs_space)
+
+    def control_dt(self) -> float:
+        return float(getattr(self._sim, "dt", 0.0125))
 
     def _state_only_obs(self, raw_obs: np.ndarray) -> dict:
         """MetaworldEnv._format_raw_obs without the render (cameras=false): agent_pos where its obs_type has it."""
@@ -102,31 +93,14 @@ class MetaworldStateExport(gym.Wrapper):
         return {"agent_pos": raw_obs[:4]} if inner.obs_type == "pixels_agent_pos" else {}
 
     def _augment(self, obs: dict, success: bool) -> dict:
-        obs = dict(obs)
-        row = None
-        if self.source is not None:
-            try:
-                row = self.source.read_packed()
-            except Exception as err:  # noqa: BLE001 - do-no-harm: an unreadable state turns correction off
-                self.read_failures += 1
-                if self.read_failures == 1:
-                    warnings.warn(f"physvla: the state source failed ({err!r}); the corrector passes actions "
-                                  "through while it does", RuntimeWarning, stacklevel=2)
-        if row is None or row.shape != (packed_size(N_JOINTS),):
-            row = np.zeros(packed_size(N_JOINTS))  # valid = 0: the corrector passes through
-            row[_F["episode_step"]] = self._steps  # episodes still split where they do
-            row[_F["dt"]] = float(getattr(self._sim, "dt", 0.0125))
-            if self.unsupported_goal is not None:
-                row[_F["valid"]] = UNSUPPORTED_GOAL_VALID
-                try:  # the scene still reaches a state-based policy (the corrector ignores a valid = -1 row)
-                    row[_OBJ : _OBJ + 3] = np.asarray(self._sim._get_pos_objects(), float)[:3]
-                    row[_TGT : _TGT + 3] = np.asarray(self._sim._target_pos, float).reshape(3)
-                except Exception:  # noqa: BLE001 - a task with no object or target: zeros
-                    row[_OBJ : _TGT + 3] = 0.0
-        rs = dict(obs.get("robot_state", {}))
-        rs[STATE_KEY] = row if self.perception is None else self.perception.apply(row[None])[0]
-        rs[EXTRA_KEY] = np.concatenate([[self.task_id, float(success)], self._last_action])
-        obs["robot_state"] = rs
+        row = self._read_row()
+        if self.source is None and self.unsupported_goal is not None:
+            try:  # the scene still reaches a state-based policy (the corrector ignores a valid = -1 row)
+                row[_OBJ : _OBJ + 3] = np.asarray(self._sim._get_pos_objects(), float)[:3]
+                row[_TGT : _TGT + 3] = np.asarray(self._sim._target_pos, float).reshape(3)
+            except Exception:  # noqa: BLE001 - a task with no object or target: zeros
+                row[_OBJ : _TGT + 3] = 0.0
+        obs = self._export(obs, success, row)
         if not self.cameras:  # object xyz, target xyz (exact: the policy's observation is never faulted)
             obs["environment_state"] = np.concatenate([row[_OBJ : _OBJ + 3], row[_TGT : _TGT + 3]])
         return obs
@@ -143,34 +117,26 @@ class MetaworldStateExport(gym.Wrapper):
         try:
             self.source = MetaworldStateSource(sim, self.task)
         except UnsupportedGoal as e:  # a task outside the model: said once, its rows marked, actions passed
-            self.unsupported_goal = e.goal
-            if e.goal not in _WARNED_GOALS:
-                _WARNED_GOALS.add(e.goal)
-                warnings.warn(f"physvla: task {self.task_id} ({self.task}): unsupported_goal: {e.goal}; its actions "
-                              "pass through unchanged (counted as unsupported_goal)", RuntimeWarning, stacklevel=3)
+            self._unsupported(e.goal, f"physvla: task {self.task_id} ({self.task}): unsupported_goal: {e.goal}; its "
+                                      "actions pass through unchanged (counted as unsupported_goal)")
         except Exception as e:  # noqa: BLE001 - do-no-harm: no state -> the corrector passes through
-            self.read_failures += 1
-            warnings.warn(f"physvla: no MetaWorld state source ({e!r}); the corrector passes actions through",
-                          RuntimeWarning, stacklevel=3)
+            self._no_source(e, "MetaWorld")
 
     def reset(self, **kwargs):
         inner = self.env.unwrapped
         if not self.cameras:
             inner._format_raw_obs = self._state_only_obs  # MetaworldEnv then never renders
         obs, info = self.env.reset(**kwargs)
-        self._steps = 0
-        self._last_action = np.zeros(ACTION_DIM)
+        self._begin_episode(kwargs.get("seed"))
         self._bind()
         if self.unsupported_goal is not None:
             info = {**info, "physvla_unsupported_goal": self.unsupported_goal}
         if self.source is not None:
             self.source.reset()
-        if self.perception is not None:
-            self.perception.reset(seed=kwargs.get("seed"))
         return self._augment(obs, False), info
 
     def step(self, action):
-        self._last_action = np.asarray(action, dtype=np.float64).copy()
+        self._executed(action)
         inner = self.env.unwrapped
         # MetaworldEnv.step resets its simulation on success, before the wrapper could read the terminal state;
         # the vector env's autoreset (this wrapper's reset) starts the next episode instead

@@ -28,13 +28,10 @@ arm on a 4-D action) where no --physvla.<field> names its own.
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from dataclasses import dataclass
 from functools import partial
 
 import gymnasium as gym
-import numpy as np
-from gymnasium import spaces
 
 from lerobot.configs.types import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
@@ -43,18 +40,16 @@ from lerobot.utils.constants import OBS_ENV_STATE, OBS_IMAGES
 from lerobot_env_so101.configuration_so101 import SO101Env as SO101EnvConfig
 
 from lerobot_physvla.core.config import so101_layout
-from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID, field_offsets, packed_size
-from lerobot_physvla.processor.physvla_processor import EXTRA_KEY, STATE_KEY, PhysVLAStateCaptureStep
+from lerobot_physvla.envs.state_export import StateExport
+from lerobot_physvla.processor.physvla_processor import PhysVLAStateCaptureStep
 
 N_JOINTS = 5  # the SO-101's arm
 ACTION_DIM = 4  # dx, dy, dz, grasp
 PICK_PLACE = "SO101PickPlace-v0"
 PICK_PLACE_ENV_STATE_DIM = 6  # block xyz, goal xyz
-_F = field_offsets(N_JOINTS)
-_WARNED_GOALS: set[str] = set()  # tasks outside the model already said, once per process
 
 
-class SO101StateExport(gym.Wrapper):
+class SO101StateExport(StateExport):
     """Adds the physical state of one lerobot-env-so101 sub-env to its observations (see module docstring).
 
     Attributes:
@@ -66,44 +61,16 @@ class SO101StateExport(gym.Wrapper):
     """
 
     def __init__(self, env, task_id: int = 0, task_name: str = ""):
-        super().__init__(env)
-        self.task_id = int(task_id)
+        super().__init__(env, N_JOINTS, ACTION_DIM, task_id)
         self.task_name = str(task_name)
-        self.source = None
-        self.read_failures = 0
-        self.unsupported_goal: str | None = None
         self._bound = False  # the env keeps one model for its life: the source is built at the first reset
-        self._steps = 0  # control steps since the last reset: a row with no source still counts them
-        self._last_action = np.zeros(ACTION_DIM)
-        obs_space = dict(env.observation_space.spaces)
-        rs = dict(obs_space["robot_state"].spaces) if "robot_state" in obs_space else {}
-        rs[STATE_KEY] = spaces.Box(-np.inf, np.inf, (packed_size(N_JOINTS),), np.float64)
-        rs[EXTRA_KEY] = spaces.Box(-np.inf, np.inf, (2 + ACTION_DIM,), np.float64)
-        obs_space["robot_state"] = spaces.Dict(rs)
-        self.observation_space = spaces.Dict(obs_space)
+        self.observation_space = self._state_spaces(dict(env.observation_space.spaces))
+
+    def control_dt(self) -> float:
+        return float(getattr(self.env.unwrapped, "control_dt", 0.1))
 
     def _augment(self, obs: dict, success: bool) -> dict:
-        obs = dict(obs)
-        row = None
-        if self.source is not None:
-            try:
-                row = self.source.read_packed()
-            except Exception as err:  # noqa: BLE001 - do-no-harm: an unreadable state turns correction off
-                self.read_failures += 1
-                if self.read_failures == 1:
-                    warnings.warn(f"physvla: the state source failed ({err!r}); the corrector passes actions "
-                                  "through while it does", RuntimeWarning, stacklevel=2)
-        if row is None or row.shape != (packed_size(N_JOINTS),):
-            row = np.zeros(packed_size(N_JOINTS))  # valid = 0: the corrector passes through
-            row[_F["episode_step"]] = self._steps  # episodes still split where they do
-            row[_F["dt"]] = float(getattr(self.env.unwrapped, "control_dt", 0.1))
-            if self.unsupported_goal is not None:
-                row[_F["valid"]] = UNSUPPORTED_GOAL_VALID
-        rs = dict(obs.get("robot_state", {}))
-        rs[STATE_KEY] = row
-        rs[EXTRA_KEY] = np.concatenate([[self.task_id, float(success)], self._last_action])
-        obs["robot_state"] = rs
-        return obs
+        return self._export(obs, success, self._read_row())
 
     def _bind(self) -> None:
         """The state source of the task env (once: it keeps one model and data for its life)."""
@@ -116,21 +83,14 @@ class SO101StateExport(gym.Wrapper):
         try:
             self.source = SO101StateSource(self.env.unwrapped, self.task_name or None)
         except UnsupportedGoal as e:  # a task outside the model: said once, its rows marked, actions passed
-            self.unsupported_goal = e.goal
-            if e.goal not in _WARNED_GOALS:
-                _WARNED_GOALS.add(e.goal)
-                warnings.warn(f"physvla: task {self.task_id} ({self.task_name}): unsupported_goal: {e.goal}; its "
-                              "actions pass through unchanged (counted as unsupported_goal)", RuntimeWarning,
-                              stacklevel=3)
+            self._unsupported(e.goal, f"physvla: task {self.task_id} ({self.task_name}): unsupported_goal: {e.goal}; "
+                                      "its actions pass through unchanged (counted as unsupported_goal)")
         except Exception as e:  # noqa: BLE001 - do-no-harm: no state -> the corrector passes through
-            self.read_failures += 1
-            warnings.warn(f"physvla: no SO-101 state source ({e!r}); the corrector passes actions through",
-                          RuntimeWarning, stacklevel=3)
+            self._no_source(e, "SO-101")
 
     def reset(self, **kwargs):
         obs, info = self.env.reset(**kwargs)
-        self._steps = 0
-        self._last_action = np.zeros(ACTION_DIM)
+        self._begin_episode(kwargs.get("seed"))
         self._bind()
         if self.unsupported_goal is not None:
             info = {**info, "physvla_unsupported_goal": self.unsupported_goal}
@@ -139,7 +99,7 @@ class SO101StateExport(gym.Wrapper):
         return self._augment(obs, False), info
 
     def step(self, action):
-        self._last_action = np.asarray(action, dtype=np.float64).copy()
+        self._executed(action)
         obs, reward, terminated, truncated, info = self.env.step(action)
         self._steps += 1
         if self.source is not None:

@@ -97,8 +97,9 @@ def test_state_only_pick_place_exports_the_sims_state_and_the_terminal_state_of_
 
 def test_a_task_outside_the_model_exports_unsupported_rows_that_pass_through_with_the_reason():
     import lerobot_physvla.envs.metaworld_physvla as mod
+    from lerobot_physvla.envs import state_export
 
-    mod._WARNED_GOALS.clear()
+    state_export._WARNED_GOALS.clear()
     cfg = MetaworldPhysVLAEnvConfig(task="door-open-v3", cameras=False, episode_length=5)
     vec = cfg.create_envs(2)["door-open-v3"][0]
     with pytest.warns(RuntimeWarning, match=r"unsupported_goal: door-open-v3 \(no grasp-carry-place: a door is "

@@ -130,8 +130,9 @@ def test_pick_place_exports_the_sims_state_leaves_the_policys_observation_and_co
 
 def test_the_pick_cube_lift_exports_unsupported_rows_that_pass_through_with_the_reason():
     import lerobot_physvla.envs.so101_physvla as mod
+    from lerobot_physvla.envs import state_export
 
-    mod._WARNED_GOALS.clear()
+    state_export._WARNED_GOALS.clear()
     cfg = SO101PhysVLAEnvConfig(task="SO101PickCube-v0", episode_length=5)
     vec = cfg.create_envs(2)["SO101PickCube-v0"][0]
     with pytest.warns(RuntimeWarning, match=r"unsupported_goal: SO101PickCube-v0 \(a lift with no place") as caught:
