@@ -32,8 +32,9 @@ from collections import Counter
 import mujoco
 import numpy as np
 
-from lerobot_physvla.core.state import SCENE, PhysState, field_offsets, packed_size
+from lerobot_physvla.core.state import PhysState, field_offsets, packed_size
 from lerobot_physvla.sources import geometry
+from lerobot_physvla.sources.header import PackedHeader, header_rows
 from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
 from lerobot_physvla.sources.robosuite import UnsupportedGoal
 
@@ -128,7 +129,7 @@ def task_of(env) -> str:
     return next((name for name, cls in ALL_V3_ENVIRONMENTS.items() if type(env) is cls), "")
 
 
-class MetaworldStateSource:
+class MetaworldStateSource(PackedHeader):
     """Reads s_t of one MetaWorld env (module docstring).
 
     Attributes:
@@ -165,27 +166,9 @@ class MetaworldStateSource:
         self._size = packed_size(n)
         f = self._f = field_offsets(n)
         # header fields written as they are: valid, episode_step, dt, obj_rest_z, the scene (measured at reset)
-        self._header = np.array([[f["valid"], 0.0], [f["episode_step"], 0.0], [f["dt"], self.dt],
-                                 [f["obj_rest_z"], np.nan]] + [[f["scene"] + k, np.nan] for k in range(len(SCENE))])
+        self._header = header_rows(f, self.dt)
         self.failures: Counter = Counter()
         self.read_packed()  # compiles the read now, never inside the first control tick
-
-    @property
-    def episode_step(self) -> int:
-        return int(self._header[1, 1])
-
-    @episode_step.setter
-    def episode_step(self, value: int) -> None:
-        self._header[1, 1] = value
-
-    @property
-    def obj_rest_z(self) -> float:
-        return float(self._header[3, 1])
-
-    @obj_rest_z.setter
-    def obj_rest_z(self, value: float) -> None:
-        self._header[3, 1] = value
-        self._header[0, 1] = 1.0 if np.isfinite(value) else 0.0  # valid once the resting height is known
 
     def object_pos(self) -> np.ndarray:
         """The task's object position, m (its own `_get_pos_objects()`, first object)."""

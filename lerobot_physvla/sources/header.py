@@ -1,0 +1,46 @@
+"""The header of a packed state that a MuJoCo state source writes as it is, shared by the robosuite / LIBERO,
+MetaWorld and SO-101 sources.
+
+`header_rows` gives the rows (offset into the packed state, value) of valid, episode_step, dt, obj_rest_z and the
+scene's geometry (core/state.py SCENE, NaN until measured); `PackedHeader` is the mixin that reads and writes the
+episode step and the object's resting height through them (valid turns 1 once that height is known).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lerobot_physvla.core.state import SCENE
+
+N_HEADER = 4 + len(SCENE)  # valid, episode_step, dt, obj_rest_z, the scene's values
+SCENE_ROWS = slice(4, N_HEADER)  # the scene's rows of the header
+
+
+def header_rows(f: dict[str, int], dt: float) -> np.ndarray:
+    """(N_HEADER, 2) rows [offset, value] of the header, for the field offsets f (core/state.py field_offsets) and the
+    control period dt (s); the episode step 0, the resting height and the scene unknown (NaN), valid 0."""
+    return np.array([[f["valid"], 0.0], [f["episode_step"], 0.0], [f["dt"], dt], [f["obj_rest_z"], np.nan]]
+                    + [[f["scene"] + k, np.nan] for k in range(len(SCENE))])
+
+
+class PackedHeader:
+    """The episode step and the object's resting height of a source's header rows (`self._header`, see header_rows)."""
+
+    _header: np.ndarray
+
+    @property
+    def episode_step(self) -> int:
+        return int(self._header[1, 1])
+
+    @episode_step.setter
+    def episode_step(self, value: int) -> None:
+        self._header[1, 1] = value
+
+    @property
+    def obj_rest_z(self) -> float:
+        return float(self._header[3, 1])
+
+    @obj_rest_z.setter
+    def obj_rest_z(self, value: float) -> None:
+        self._header[3, 1] = value
+        self._header[0, 1] = 1.0 if np.isfinite(value) else 0.0  # valid once the resting height is known
