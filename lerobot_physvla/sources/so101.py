@@ -50,7 +50,7 @@ from collections import Counter
 import mujoco
 import numpy as np
 
-from lerobot_physvla.core.state import SCENE, PhysState, field_offsets, packed_size
+from lerobot_physvla.core.state import PhysState, field_offsets, packed_size
 from lerobot_physvla.sources import geometry
 from lerobot_physvla.sources.header import PackedHeader, header_rows
 from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle

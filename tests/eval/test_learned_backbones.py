@@ -324,3 +324,40 @@ def test_the_suite_paths_and_repo_id_follow_the_suite():
                                                                                       "outputs/train")
     with pytest.raises(SystemExit, match="unknown suite"):
         train_backbones.suite_paths("libero_90")
+
+
+def test_the_kept_suite_acts_are_the_ones_the_rule_chose_on_their_selection_block():
+    """SUITE_CHOICE (which checkpoints are each suite's ACT backbones) must be what choose_suite gives on the
+    uncorrected episodes eval/results/suites_learned_select recorded (every checkpoint, n = 50), not a hand pick;
+    and each committed copy holds the weights those episodes ran."""
+    import hashlib
+
+    from store import Store, config_hash
+
+    from lerobot_physvla.core.config import PhysVLAConfig
+
+    data = Store(ROOT / "eval/results/suites_learned_select")
+    uncorrected = config_hash(PhysVLAConfig.paper(mode="baseline").to_dict())
+    checked = 0
+    for suite, short in train_backbones.SUITE_SHORT.items():
+        for recipe in train_backbones.SUITE_RECIPES:
+            rate, sha = {}, {}
+            for r in data.rows:
+                name, _, step = r["backbone"].partition("@")
+                if r["config"] == uncorrected and name == f"{short}_{recipe}":
+                    rate.setdefault(int(step), []).append(r["success"])
+                    sha[int(step)] = data.meta["backbones"][r["backbone"]]["policy_sha256"]
+            if not rate:  # this suite's ACTs are not trained yet: no backbone of theirs may be named
+                assert not any(k.startswith(f"{short}_{recipe}") for k in train_backbones.SUITE_CHOICE)
+                continue
+            assert len(rate) == train_backbones.CHECKPOINTS_PER_RUN and all(len(v) == 50 for v in rate.values())
+            strong, weak = train_backbones.choose_suite({s: float(np.mean(v)) for s, v in rate.items()})
+            kept = {f"{short}_{recipe}": strong} | ({f"{short}_{recipe}_weak": weak} if weak is not None else {})
+            for name, step in kept.items():
+                assert train_backbones.SUITE_CHOICE[name] == (f"{suite}/{recipe}", step), name
+                committed = train_backbones.COMMITTED / name / "model.safetensors"
+                assert hashlib.sha256(committed.read_bytes()).hexdigest() == sha[step], name
+                checked += 1
+            if weak is None:
+                assert f"{short}_{recipe}_weak" not in train_backbones.SUITE_CHOICE
+    assert checked >= 2  # LIBERO-Object's two recipes at least
