@@ -211,7 +211,13 @@ SUITE_RECIPES = ("act_single", "act_chunk")
 STRONG_BAND, WEAK_BAND, WEAK_TARGET = (0.60, 0.95), (0.20, 0.50), 0.35
 # "<short>_<recipe>[_weak]" -> (its run's directory under the training root, step), as the selection
 # study's units chose it (a test recomputes the choice from them)
-SUITE_CHOICE: dict[str, tuple[str, int]] = {}
+SUITE_CHOICE: dict[str, tuple[str, int]] = {
+    # LIBERO-Object (eval/results/suites_learned_select): act_single's checkpoints 0, 6, 6, 4, 0 % (none in either
+    # band: its final one is kept, outside the band, and it has no weaker sibling); act_chunk's 38, 74, 30, 80, 58 %
+    "object_act_single": ("libero_object/act_single", 20000),
+    "object_act_chunk": ("libero_object/act_chunk", 9600),
+    "object_act_chunk_weak": ("libero_object/act_chunk", 2400),
+}
 
 
 def choose_suite(success: dict[int, float]) -> tuple[int, int | None]:
