@@ -44,3 +44,23 @@ class PackedHeader:
     def obj_rest_z(self, value: float) -> None:
         self._header[3, 1] = value
         self._header[0, 1] = 1.0 if np.isfinite(value) else 0.0  # valid once the resting height is known
+
+
+def pack_arm_row(src, data, row: np.ndarray, point: np.ndarray, body: int) -> np.ndarray:
+    """A mocap- or servo-driven arm's packed state into row, for the MetaWorld and SO-101 sources: the oracle's
+    compiled read (the arm's fields and the header), then the end-effector point (m) and its Jacobian (mj_jac at
+    that point on `body`), the joints' damping added to tau, the gripper opening, the object and the target.
+    src: the source (its oracle, model, _jacp, _arm_dofs, _f, _header, opening, object_pos, target_pos)."""
+    import mujoco
+
+    f = src._f
+    src.oracle.read_live_into(data, row, None, src._header)
+    mujoco.mj_jac(src.model, data, src._jacp, None, point, body)
+    n = src.oracle.n_joints
+    row[f["J_pos"] : f["J_pos"] + 3 * n] = src._jacp[:, src._arm_dofs].reshape(-1)
+    row[f["tau"] : f["tau"] + n] += data.qfrc_passive[src._arm_dofs]  # the joints' damping
+    row[f["eef_pos"] : f["eef_pos"] + 3] = point
+    row[f["gripper"]] = src.opening(data)
+    row[f["obj_pos"] : f["obj_pos"] + 3] = src.object_pos()
+    row[f["target_pos"] : f["target_pos"] + 3] = src.target_pos()
+    return row

@@ -34,7 +34,7 @@ import numpy as np
 
 from lerobot_physvla.core.state import PhysState, field_offsets, packed_size
 from lerobot_physvla.sources import geometry
-from lerobot_physvla.sources.header import PackedHeader, header_rows
+from lerobot_physvla.sources.header import PackedHeader, header_rows, pack_arm_row
 from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
 from lerobot_physvla.sources.robosuite import UnsupportedGoal
 
@@ -260,18 +260,8 @@ class MetaworldStateSource(PackedHeader):
         """
         row = np.zeros(self._size)
         try:
-            d, f = self.env.data, self._f
-            self.oracle.read_live_into(d, row, None, self._header)
-            tcp = self.tcp(d)
-            mujoco.mj_jac(self.model, d, self._jacp, None, tcp, self._hand)
-            n = self.oracle.n_joints
-            row[f["J_pos"] : f["J_pos"] + 3 * n] = self._jacp[:, self._arm_dofs].reshape(-1)
-            row[f["tau"] : f["tau"] + n] += d.qfrc_passive[self._arm_dofs]  # the joints' damping
-            row[f["eef_pos"] : f["eef_pos"] + 3] = tcp
-            row[f["gripper"]] = self.opening(d)
-            row[f["obj_pos"] : f["obj_pos"] + 3] = self.object_pos()
-            row[f["target_pos"] : f["target_pos"] + 3] = self.target_pos()
-            return row
+            d = self.env.data
+            return pack_arm_row(self, d, row, self.tcp(d), self._hand)
         except Exception as e:  # noqa: BLE001 - do-no-harm: an unreadable state disables correction
             self.failures[type(e).__name__] += 1
             if sum(self.failures.values()) == 1:

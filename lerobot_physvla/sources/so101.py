@@ -52,7 +52,7 @@ import numpy as np
 
 from lerobot_physvla.core.state import PhysState, field_offsets, packed_size
 from lerobot_physvla.sources import geometry
-from lerobot_physvla.sources.header import PackedHeader, header_rows
+from lerobot_physvla.sources.header import PackedHeader, header_rows, pack_arm_row
 from lerobot_physvla.sources.mujoco import MujocoDynamicsOracle
 from lerobot_physvla.sources.robosuite import UnsupportedGoal
 
@@ -233,18 +233,7 @@ class SO101StateSource(PackedHeader):
         """
         row = np.zeros(self._size)
         try:
-            d, f = self.env.data, self._f
-            self.oracle.read_live_into(d, row, None, self._header)
-            eef = self.eef()
-            mujoco.mj_jac(self.model, d, self._jacp, None, eef, self._site_body)
-            n = self.oracle.n_joints
-            row[f["J_pos"] : f["J_pos"] + 3 * n] = self._jacp[:, self._arm_dofs].reshape(-1)
-            row[f["tau"] : f["tau"] + n] += d.qfrc_passive[self._arm_dofs]  # the joints' damping
-            row[f["eef_pos"] : f["eef_pos"] + 3] = eef
-            row[f["gripper"]] = self.opening(d)
-            row[f["obj_pos"] : f["obj_pos"] + 3] = self.object_pos()
-            row[f["target_pos"] : f["target_pos"] + 3] = self.target_pos()
-            return row
+            return pack_arm_row(self, self.env.data, row, self.eef(), self._site_body)
         except Exception as e:  # noqa: BLE001 - do-no-harm: an unreadable state disables correction
             self.failures[type(e).__name__] += 1
             if sum(self.failures.values()) == 1:
