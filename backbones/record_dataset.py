@@ -1,7 +1,7 @@
 """Record scripted-expert rollouts on a LIBERO suite into a local LeRobotDataset (v3), state only.
 
     .venv/bin/python backbones/record_dataset.py [--suite libero_spatial] [--out outputs/datasets/physvla_<suite>]
-        [--seeds 10-39] [--tasks 0-9] [--dart-sigma 0.1,0.3] [--workers 2]
+        [--seeds 10-39] [--tasks 0-9] [--dart-sigma 0.1,0.3] [--workers 2] [--camera-size 0]
 
 The teacher: LIBERO-Spatial's bowl expert (sim/experts.py) on libero_spatial, the shape-planning expert
 (sim/shape_expert.py) on the other suites (`--teacher` to choose). Each suite's horizon is lerobot's
@@ -13,6 +13,13 @@ Each frame holds what a state-based policy sees in `lerobot-eval --env.type=libe
     observation.environment_state  object xyz, target xyz (from the BDDL goal) (6, float32)
     action                         the clean expert's action, LIBERO OSC_POSE  (7, float32)
     task                           the task's language instruction
+With --camera-size N the frames hold what an image-input policy sees in `lerobot-eval --env.type=libero
+--env.observation_height=N --env.observation_width=N` instead (no object or target position):
+    observation.state              as above                                   (8, float32)
+    observation.images.image       the agentview frame, turned as lerobot's LiberoProcessorStep turns it
+                                   (N, N, 3, uint8; sim/scenes.py LiberoScene.frame)
+    action, task                   as above
+rendered on this CPU at ~0.13 s a step (default root outputs/datasets/physvla_<suite>_agentview<N>).
 Only successful episodes are kept. With --dart-sigma > 0 the *executed* action gets Gaussian
 x, y noise (action units) while the *recorded* label stays the expert's clean action (DART), so
 the demonstrations cover the states a slightly-off learned policy will visit. Several noise
@@ -47,30 +54,42 @@ FEATURES = {
     "observation.environment_state": {"dtype": "float32", "shape": (6,), "names": ENV_NAMES},
     "action": {"dtype": "float32", "shape": (7,), "names": ACTION_NAMES},
 }
+IMAGE = "observation.images.image"
+
+
+def features(camera_size: int = 0) -> dict:
+    """The dataset's features: state-only, or (camera_size > 0) state and the agentview frame, no object state."""
+    if not camera_size:
+        return FEATURES
+    return {"observation.state": FEATURES["observation.state"],
+            IMAGE: {"dtype": "image", "shape": (camera_size, camera_size, 3), "names": ["height", "width", "channels"]},
+            "action": FEATURES["action"]}
 
 
 def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0, suite: str = "libero_spatial",
-            teacher: str = "bowl") -> list[dict]:
+            teacher: str = "bowl", camera_size: int = 0) -> list[dict]:
     """Expert episodes of one task; returns the successful ones as arrays (runs in a worker)."""
     from lerobot_physvla.sim.experts import PickPlaceExpert
     from lerobot_physvla.sim.scenes import LiberoScene
     from lerobot_physvla.sim.shape_expert import ShapeExpert
 
-    scene = LiberoScene(suite, task_id)
+    scene = LiberoScene(suite, task_id, camera_size=camera_size, every_step=True)  # lerobot-eval's pixels
     expert = ShapeExpert() if teacher == "shape" else PickPlaceExpert()
     episodes = []
     for seed in seeds:
         scene.reset(seed)
         expert.reset(seed=seed)
         rng = np.random.default_rng(10_000 + seed + 1_000_000 * level)  # level 0: the original draws
-        obs_s, obs_e, acts, success = [], [], [], False
+        obs_s, obs_e, frames, acts, success = [], [], [], [], False
         for _ in range(scene.horizon):
             st = scene.read()
-            o = scene.policy_observation(st)
+            o = scene.policy_observation(st, frame=False)  # the frame is rendered once, below
             a = (expert.act_source(scene.source) if teacher == "shape"
                  else expert.act(st.eef_pos[0], st.obj_pos[0], st.target_pos[0]))
             obs_s.append(o["observation.state"])
             obs_e.append(o["observation.environment_state"])
+            if camera_size:
+                frames.append(scene.frame())
             acts.append(a.astype(np.float32))
             executed = a.copy()
             if dart_sigma > 0:
@@ -80,7 +99,8 @@ def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0, s
                 break
         if success:
             episodes.append({"task_id": task_id, "seed": seed, "dart_sigma": dart_sigma, "task": scene.task.language,
-                             "state": np.asarray(obs_s), "env": np.asarray(obs_e), "action": np.asarray(acts)})
+                             "state": np.asarray(obs_s), "env": np.asarray(obs_e), "action": np.asarray(acts),
+                             "image": np.asarray(frames) if camera_size else None})
     return episodes
 
 
@@ -96,13 +116,16 @@ def main() -> None:
     ap.add_argument("--dart-sigma", default="0.1,0.3",
                     help="executed-action x, y noise (action units); a comma list records each init state once per level")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--camera-size", type=int, default=0,
+                    help="N > 0: record the agentview frame (N x N) instead of the object and target positions")
     args = ap.parse_args()
 
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     teacher = args.teacher or ("bowl" if args.suite == "libero_spatial" else "shape")
-    args.out = args.out or f"outputs/datasets/physvla_{args.suite}"
-    args.repo_id = args.repo_id or f"local/physvla_{args.suite}"
+    name = f"physvla_{args.suite}" + (f"_agentview{args.camera_size}" if args.camera_size else "")
+    args.out = args.out or f"outputs/datasets/{name}"
+    args.repo_id = args.repo_id or f"local/{name}"
     tasks, seeds = parse_range(args.tasks), parse_range(args.seeds)
     if any(40 <= s <= 49 for s in seeds):
         sys.exit("record_dataset: init states 40-49 are kept for the final evaluation; record others")
@@ -110,17 +133,23 @@ def main() -> None:
     t0 = time.time()
     episodes = []
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        futures = [pool.submit(rollout, t, seeds, sig, lvl, args.suite, teacher) for lvl, sig in enumerate(sigmas)
-                   for t in tasks]
+        futures = [pool.submit(rollout, t, seeds, sig, lvl, args.suite, teacher, args.camera_size)
+                   for lvl, sig in enumerate(sigmas) for t in tasks]
         for f in tqdm(futures, desc="tasks", unit="task"):
             episodes += f.result()
     out = Path(args.out)
     if out.exists():
         shutil.rmtree(out)
-    ds = LeRobotDataset.create(args.repo_id, fps=FPS, features=FEATURES, root=out, robot_type="panda", use_videos=False)
+    ds = LeRobotDataset.create(args.repo_id, fps=FPS, features=features(args.camera_size), root=out, robot_type="panda",
+                               use_videos=False)
     for ep in tqdm(episodes, desc="writing", unit="episode"):
-        for s, e, a in zip(ep["state"], ep["env"], ep["action"]):
-            ds.add_frame({"observation.state": s, "observation.environment_state": e, "action": a, "task": ep["task"]})
+        for t, (s, e, a) in enumerate(zip(ep["state"], ep["env"], ep["action"])):
+            frame = {"observation.state": s, "action": a, "task": ep["task"]}
+            if args.camera_size:
+                frame[IMAGE] = ep["image"][t]
+            else:
+                frame["observation.environment_state"] = e
+            ds.add_frame(frame)
         ds.save_episode()
     ds.finalize()
     kept = {t: sum(e["task_id"] == t for e in episodes) for t in tasks}

@@ -9,7 +9,8 @@ kind it is.
   geometry from the scene (`scene.expert`).
 - Learned backbones (`LeRobotBackbone`): a LeRobot policy checkpoint (backbones/train_backbones.py)
   with its own pre/post-processors (normalisation), fed the state observation that
-  `lerobot-eval --env.type=libero_physvla --env.cameras=false` gives it.
+  `lerobot-eval --env.type=libero_physvla --env.cameras=false` gives it, and on a camera scene
+  (`<suite>+agentview<N>`) the agentview frame that `--env.type=libero` gives it.
 """
 
 from __future__ import annotations
@@ -92,5 +93,17 @@ class LeRobotBackbone:
     def reset(self, seed: int) -> None:
         self._runner.reset(seed)  # diffusion sampling noise: matched across modes per seed
 
+    def reads_observation(self) -> bool:
+        """Whether the policy's next action reads this step's observation. An ACT executing a chunk (n_action_steps
+        > 1, no temporal ensembling) pops its queue and ignores the batch until the queue is empty; every other
+        policy reads every observation (Diffusion keeps an observation history)."""
+        cfg = self.policy.config
+        queue = getattr(self.policy, "_action_queue", None)
+        if cfg.type != "act" or queue is None or getattr(cfg, "temporal_ensemble_coeff", None) is not None:
+            return True
+        return len(queue) == 0
+
     def act(self, scene, state) -> np.ndarray:
-        return self._runner.act(scene.policy_observation(state), scene.task.language)
+        # a camera scene renders its frame only for the steps the policy reads (the actions are the same)
+        kw = {"frame": self.reads_observation()} if getattr(scene, "camera_size", 0) else {}
+        return self._runner.act(scene.policy_observation(state, **kw), scene.task.language)

@@ -46,18 +46,22 @@ def load_task(suite: str, task_id: int) -> LiberoTask:
     return LiberoTask(suite, task_id, task.name, task.language, bddl, np.asarray(init_states))
 
 
-def make_libero_env(task: LiberoTask, cameras: bool = False, camera_size: int = 256, control_freq: int = 20):
-    """LIBERO ControlEnv for `task` (reset once, so the inner robosuite env exists)."""
+def make_libero_env(task: LiberoTask, cameras: bool = False, camera_size: int = 256, control_freq: int = 20,
+                    renderer: bool = False, camera_names: tuple[str, ...] = ("agentview", "robot0_eye_in_hand")):
+    """LIBERO ControlEnv for `task` (reset once, so the inner robosuite env exists). With cameras, robosuite renders
+    `camera_names` (camera_size x camera_size each) into every observation, as lerobot's LiberoEnv renders both
+    (~0.13 s a camera a step on this CPU); with only `renderer`, it builds the offscreen renderer and renders
+    nothing until asked (`env.env.sim.render(camera_name=...)`)."""
     from libero.libero.envs.env_wrapper import ControlEnv, OffScreenRenderEnv
 
     if cameras:
         env = OffScreenRenderEnv(
             bddl_file_name=task.bddl_file, camera_heights=camera_size, camera_widths=camera_size,
-            control_freq=control_freq,
+            control_freq=control_freq, camera_names=list(camera_names),
         )
     else:
         env = ControlEnv(
-            bddl_file_name=task.bddl_file, has_renderer=False, has_offscreen_renderer=False,
+            bddl_file_name=task.bddl_file, has_renderer=False, has_offscreen_renderer=renderer,
             use_camera_obs=False, control_freq=control_freq,
         )
     env.reset()

@@ -9,6 +9,9 @@ drive LIBERO, MetaWorld, robosuite Lift and gymnasium-robotics Fetch through it.
 Scenes by name (`make_scene`):
     <suite>/<task id>          a LIBERO task (libero_spatial, libero_object, libero_goal, libero_10),
                                state-only, with lerobot's horizon for its suite
+    <suite>+agentview<N>/<id>  the same task with LIBERO's agentview camera rendered at N x N pixels: its
+                               frame joins the policy's observation (`observation.images.image`, as
+                               `lerobot-eval --env.type=libero` gives it), for image-input policies
     metaworld/<k>              a MetaWorld task the corrector models, k in 0-5 (metaworld_sim.py TASKS:
                                pick-place, pick-place-wall, bin-picking, shelf-place, basketball,
                                pick-out-of-hole), state-only, MetaWorld's horizon (500) and success
@@ -55,22 +58,55 @@ class Scene(Protocol):
 HORIZONS = {"libero_spatial": 280, "libero_object": 280, "libero_goal": 300, "libero_10": 520, "libero_90": 400}
 
 
+CAMERA_TAG = "+agentview"  # <suite>+agentview<N>: the suite's scenes with the agentview camera at N x N pixels
+
+
+def parse_suite(name: str) -> tuple[str, int]:
+    """(LIBERO suite, agentview size in pixels or 0) of a scene's suite part, e.g. "libero_spatial+agentview128"."""
+    suite, tag, size = name.partition(CAMERA_TAG)
+    if not tag:
+        return suite, 0
+    if not size.isdigit() or not 16 <= int(size) <= 1024:
+        raise ValueError(f"physvla: a camera scene is named <suite>{CAMERA_TAG}<pixels>, e.g. "
+                         f"libero_spatial{CAMERA_TAG}128/0; got {name!r}")
+    return suite, int(size)
+
+
+def agentview_frame(raw_obs: dict) -> np.ndarray:
+    """(H, W, 3) uint8: LIBERO's agentview frame as lerobot's LiberoProcessorStep hands it to a policy (robosuite's
+    frame turned 180 degrees); what backbones/record_dataset.py --camera-size stores."""
+    return np.ascontiguousarray(np.asarray(raw_obs["agentview_image"], dtype=np.uint8)[::-1, ::-1])
+
+
 class LiberoScene:
-    """One LIBERO task, state-only: init state `seed % 50`, env seeded with `seed`. A task whose goal the corrector
-    does not model (no On / In predicate: an Open, a TurnOn) has no state source: `read()` gives a state marked
-    valid = -1 (the corrector passes through, unsupported_goal) and `unsupported_goal` names the goal."""
+    """One LIBERO task, state-only unless `camera_size` > 0: init state `seed % 50`, env seeded with `seed`. A task
+    whose goal the corrector does not model (no On / In predicate: an Open, a TurnOn) has no state source: `read()`
+    gives a state marked valid = -1 (the corrector passes through, unsupported_goal) and `unsupported_goal` names
+    the goal.
+
+    Attributes:
+        camera_size: agentview frame size in pixels (0: no renderer; ~0.13 s a frame here).
+        every_step: render the frame inside every step, as lerobot's LIBERO env does (robosuite's camera
+            observation, taken in the step's last physics substep): the pixels lerobot-eval gives a policy, what
+            the dataset recorder stores. False (the harness) renders it when `frame()` is asked, after the step
+            has ended: the moving arm is one physics substep (2 ms) further along, so its edge pixels differ
+            (measured: 3.6 % of pixel values one step into init state 0), and a chunked policy that reads one
+            frame in ten costs a tenth.
+    """
 
     layout = LIBERO_OSC_POSE
     stop_on_success = True
     expert: dict = {}
 
-    def __init__(self, suite: str = "libero_spatial", task_id: int = 0):
+    def __init__(self, suite: str = "libero_spatial", task_id: int = 0, camera_size: int = 0, every_step: bool = False):
         from lerobot_physvla.sim import libero_sim
 
-        self.name = f"{suite}/{task_id}"
+        self.camera_size, self.every_step = int(camera_size), bool(every_step and camera_size)
+        self.name = f"{suite}{CAMERA_TAG}{self.camera_size}/{task_id}" if self.camera_size else f"{suite}/{task_id}"
         self.horizon = HORIZONS.get(suite, 280)
         self.task = libero_sim.load_task(suite, task_id)
-        self.env = libero_sim.make_libero_env(self.task)
+        self.env = libero_sim.make_libero_env(self.task, cameras=self.every_step, camera_size=self.camera_size or 256,
+                                              renderer=self.camera_size > 0, camera_names=("agentview",))
         self.source = None
         self.unsupported_goal = ""
         self.raw_obs: dict = {}
@@ -106,15 +142,34 @@ class LiberoScene:
             self.source.step()
         return bool(self.env.check_success()), float(reward)
 
-    def policy_observation(self, state: PhysState) -> dict[str, np.ndarray]:
+    def policy_observation(self, state: PhysState, frame: bool = True) -> dict[str, np.ndarray]:
         """The observation a state-based LeRobot policy sees in `lerobot-eval --env.type=libero_physvla
         --env.cameras=false`: observation.state = eef xyz, eef axis-angle, finger qpos (8, as
         lerobot's LiberoProcessorStep builds it) and observation.environment_state = object xyz,
-        target xyz (6), float32."""
+        target xyz (6), float32. With a camera, also observation.images.image: the agentview frame as
+        `lerobot-eval --env.type=libero` gives it to a policy, (3, H, W) float32 in [0, 1]; black
+        with frame=False (for a step whose observation the policy does not read)."""
         o = self.raw_obs
         robot = np.concatenate([o["robot0_eef_pos"], quat_to_axis_angle(o["robot0_eef_quat"]), o["robot0_gripper_qpos"]])
         env_state = np.concatenate([state.obj_pos[0], state.target_pos[0]])
-        return {"observation.state": robot.astype(np.float32), "observation.environment_state": env_state.astype(np.float32)}
+        out = {"observation.state": robot.astype(np.float32), "observation.environment_state": env_state.astype(np.float32)}
+        if self.camera_size:
+            out["observation.images.image"] = (self.frame().transpose(2, 0, 1).astype(np.float32) / 255.0 if frame else
+                                               np.zeros((3, self.camera_size, self.camera_size), np.float32))
+        return out
+
+    def frame(self) -> np.ndarray:
+        """(N, N, 3) uint8: the agentview frame of this step as a policy sees it (agentview_frame): the step's camera
+        observation (every_step), else rendered now by robosuite's camera call."""
+        if not self.camera_size:
+            raise ValueError(f"physvla: scene {self.name} renders no camera; name it <suite>{CAMERA_TAG}<pixels>/<task>")
+        if self.every_step:
+            return agentview_frame(self.raw_obs)
+        from robosuite.utils.mjcf_utils import IMAGE_CONVENTION_MAPPING
+        from robosuite import macros
+
+        img = self.env.env.sim.render(camera_name="agentview", width=self.camera_size, height=self.camera_size)
+        return agentview_frame({"agentview_image": img[::IMAGE_CONVENTION_MAPPING[macros.IMAGE_CONVENTION]]})
 
 
 def quat_to_axis_angle(quat_xyzw: np.ndarray) -> np.ndarray:
@@ -167,7 +222,8 @@ def make_scene(name: str) -> Scene:
         suite, _, task = name.partition("/")
         if not task.isdigit():
             raise ValueError(f"physvla: LIBERO scenes are named <suite>/<task id>, e.g. libero_spatial/0; got {name!r}")
-        return LiberoScene(suite, int(task))
+        suite, camera_size = parse_suite(suite)
+        return LiberoScene(suite, int(task), camera_size=camera_size)
     if name.startswith("metaworld"):
         from lerobot_physvla.sim.metaworld_sim import MetaworldScene, scene_index
 
