@@ -181,10 +181,12 @@ def readme_table() -> list[str]:
     return lines
 
 
-SUITES = {"object": "LIBERO-Object", "goal": "LIBERO-Goal", "ten": "LIBERO-10"}
+SUITES = {"object": "LIBERO-Object", "goal": "LIBERO-Goal", "ten": "LIBERO-10",
+          "image": "LIBERO-Spatial, agentview camera"}
 
 
-SUITE_STUDIES = ("suites", "suites_learned")  # the scripted teacher's study, then the ACTs distilled from it
+# the scripted teacher's study, the ACTs distilled from it, and the image-input ACT (eval/studies/image_act.toml)
+SUITE_STUDIES = ("suites", "suites_learned", "image_act")
 
 
 def suites_table() -> list[str]:
