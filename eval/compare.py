@@ -101,7 +101,7 @@ def task_regressions(this: list[dict], base: list[dict]) -> dict[int, tuple[int,
 # ---------------------------------------------------------------------------------------------- decision rules
 
 METRICS = ("net", "won_minus_lost_pooled", "pooled_diff", "pooled_lower", "jerk_ratio", "cell_successes",
-           "degradation_ratio")
+           "degradation_ratio", "kept")
 
 
 @dataclass(frozen=True)
@@ -117,7 +117,10 @@ class Check:
             - "jerk_ratio": the mean per-pair jerk ratio, for each backbone;
             - "cell_successes": successes minus the other configuration's, for each backbone (noise cells);
             - "degradation_ratio": baseline's jerk degradation over the candidate's between two noise cells
-              (`cells` = [noise-free backbone, noisy backbone]).
+              (`cells` = [noise-free backbone, noisy backbone]);
+            - "kept": the candidate's gain over baseline (successes, same pairs) as a fraction of the reference's,
+              for each backbone (`against` names nothing here: it reads all three; a reference that gains nothing
+              gives inf where the candidate gains as much, else -inf).
         against: "baseline" or "reference".
         backbones: the backbones it reads ([] = every backbone of the role's blocks); a name may be a group.
         exclude: backbones left out.
@@ -160,6 +163,17 @@ class Check:
         return " and ".join(p for p in parts if p)
 
 
+def kept(candidate: list[dict], reference: list[dict], baseline: list[dict]) -> float:
+    """The candidate's gain in successes over baseline as a fraction of the reference's (rows paired on the same
+    episodes: each list holds one row per pair); a reference that gains nothing: inf where the candidate gains
+    as much or more, else -inf."""
+    base = sum(r["success"] for r in baseline)
+    gain, ref = sum(r["success"] for r in candidate) - base, sum(r["success"] for r in reference) - base
+    if ref <= 0:
+        return float("inf") if gain >= ref else float("-inf")
+    return gain / ref
+
+
 def evaluate(check: Check, cells: dict[str, dict[str, list[dict]]], backbones: list[str]) -> tuple[bool | None, str]:
     """One check on one role's cells ({backbone: {"candidate" | "reference" | "baseline": rows, "n": pairs the
     blocks hold}}): whether it holds and the values it read, in words. A check fails as soon as a complete
@@ -196,13 +210,17 @@ def evaluate(check: Check, cells: dict[str, dict[str, list[dict]]], backbones: l
             return check.bounds_ok(pool["diff"]), f"{pool['diff'] * 100:+.1f} pp over {pool['n']} pairs"
         return check.bounds_ok(pool["ci"][0]), (f"{pool['diff'] * 100:+.1f} pp [{pool['ci'][0] * 100:+.1f}, "
                                                f"{pool['ci'][1] * 100:+.1f}] over {pool['n']} pairs")
-    if check.metric == "cell_successes":
+    if check.metric == "kept":
+        whole = [b for b in names if complete(b, "candidate", "reference", "baseline")]
+        partial = [b for b in names if b not in whole]
+        vals = {b: kept(cells[b]["candidate"], cells[b]["reference"], cells[b]["baseline"]) for b in whole}
+    elif check.metric == "cell_successes":
         vals = {b: sum(r["success"] for r in cells[b]["candidate"]) - sum(r["success"] for r in cells[b][other])
                 for b in whole}
     else:
         ps = {b: paired(cells[b]["candidate"], cells[b][other]) for b in whole}
         vals = {b: p["won"] - p["lost"] if check.metric == "net" else p["jerk_ratio"] for b, p in ps.items()}
-    fmt = "{:.2f}" if check.metric == "jerk_ratio" else "{:+d}"
+    fmt = "{:.2f}" if check.metric in ("jerk_ratio", "kept") else "{:+d}"
     what = ", ".join(f"{b} {fmt.format(v)}" for b, v in vals.items()) + ("; incomplete: " + ", ".join(partial)
                                                                          if partial else "")
     if not all(check.bounds_ok(v) for v in vals.values()):

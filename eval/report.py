@@ -344,8 +344,9 @@ def section_error_sweep(study, rows, sec, out) -> list[str]:
     (`exact`); `kept` = the told gain over the exact one; a plot of the gains against the error per backbone."""
     bl = study.blocks[sec["block"]]
     base, exact = sec.get("against", "baseline"), sec["exact"]
-    head = ["| backbone | fault | level | told: gain [95 % CI] | won / lost | kept | not told: gain [95 % CI] | "
-            "won / lost | pass-throughs (told) |", "|---|---|---|---|---|---|---|---|---|"]
+    told_s, untold_s = sec.get("labels", ["told", "not told"])  # what the two columns of configurations are
+    head = [f"| backbone | fault | level | {told_s}: gain [95 % CI] | won / lost | kept | {untold_s}: gain [95 % CI] | "
+            f"won / lost | pass-throughs ({told_s}) |", "|---|---|---|---|---|---|---|---|---|"]
     lines, curves = [], {}
     for b in bl.backbones:
         ref = cmp.paired(rows.get(exact, b, bl), rows.get(base, b, bl))
@@ -369,7 +370,7 @@ def section_error_sweep(study, rows, sec, out) -> list[str]:
         lines.append("")
     if sec.get("plot") and curves:
         _plot_error_sweep(curves, [b for b in bl.backbones if any(k[0] == b for k in curves)], list(sec["axes"]),
-                          out / sec["plot"], sec.get("plot_title", study.title))
+                          out / sec["plot"], sec.get("plot_title", study.title), (told_s, untold_s))
         lines += [f"![{PLOT_ALT['error_sweep']}]({sec['plot']})", ""]
     return lines
 
@@ -489,9 +490,9 @@ def _plot_sweep(cell, levels, configs, path: Path, title: str) -> None:
     plt.close(fig)
 
 
-def _plot_error_sweep(curves, backbones, axes_names, path: Path, title: str) -> None:
+def _plot_error_sweep(curves, backbones, axes_names, path: Path, title: str, labels=("told", "not told")) -> None:
     """One row per backbone, one panel per fault: the paired gain over baseline (95 % CI) against the level,
-    told and not told, with the exact-state gain as a line."""
+    of the two columns of configurations (`labels`: told and not told), with the exact-state gain as a line."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -505,7 +506,7 @@ def _plot_error_sweep(curves, backbones, axes_names, path: Path, title: str) -> 
             ref, pts = curves[(b, ax_name)]
             ax.axhline(ref["diff"] * 100, color="grey", ls="--", lw=1, label="exact state")
             ax.axhline(0, color="black", lw=0.6)
-            for k, (label, color) in enumerate((("told", "tab:blue"), ("not told", "tab:red"))):
+            for k, (label, color) in enumerate(((labels[0], "tab:blue"), (labels[1], "tab:red"))):
                 xs, ys, lo, hi = [], [], [], []
                 for level, t, u in pts:
                     r = t if k == 0 else u

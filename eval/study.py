@@ -20,6 +20,9 @@
     "bias 2 cm, told" = {preset = "default", pose_error_m = "truth", perception = {bias_m = 0.02}}
                                        # perception: faults between the scene and the corrector (PoseFaults
                                        # fields for both poses, or object / target tables); "truth": their bound
+    "noise 1 cm, filtered" = {preset = "default", pose_error_m = "truth", pose_noise_m = "truth",
+                              perception = {noise_m = 0.01}}   # pose_noise_m "truth": the noise's sigma, and then
+                                       # pose_error_m "truth" is the bias alone (the filter answers to the noise)
 
     [scene_overrides]                  # fields every configuration takes on one scene
     fetch_pick_place = {layout = "fetch_4d", weighting = "task_space"}
@@ -174,8 +177,11 @@ class Study:
             base = spec.pop("preset", None)
             try:
                 faults = PerceptionConfig.from_dict(spec.pop("perception", {}))
-                if spec.get("pose_error_m") == "truth":  # told the perception's error bound
-                    spec["pose_error_m"] = faults.error_bound_m
+                noise_told = spec.get("pose_noise_m") == "truth"
+                if noise_told:  # told the perception's noise: the pose filter (core/pose_filter.py) answers to it
+                    spec["pose_noise_m"] = faults.noise_m
+                if spec.get("pose_error_m") == "truth":  # told the perception's error bound (less the noise, if told)
+                    spec["pose_error_m"] = faults.bias_m if noise_told else faults.error_bound_m
                 cfg = preset(base, **spec) if base else PhysVLAConfig(**spec)
                 cfg.validate()
             except (TypeError, ValueError) as e:

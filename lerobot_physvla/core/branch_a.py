@@ -1,4 +1,5 @@
-"""Branch A over B envs: validity, geometry, phase (eq. 3) and the phase's corrections.
+"""Branch A over B envs: validity, geometry (the poses filtered where pose_noise_m > 0: core/pose_filter.py), phase
+(eq. 3) and the phase's corrections.
 
 The per-phase dispatch (`branch_a_row`) is assembled from the corrections' declarations
 (corrections/__init__.py CORRECTIONS): in each phase, every correction of that phase that the
@@ -35,19 +36,20 @@ from numba import njit
 from lerobot_physvla.core.corrections import CORRECTIONS, slots
 from lerobot_physvla.core.corrections.approach_veto import timed_close
 from lerobot_physvla.core.corrections.base import (D_OBJ_XY, D_TGT_XY, EEF, FINGERS, HIGH, LIFT, LOW, N_GEO, OBJ,
-                                                   PHASE_REF_OBJECT, POSE_MAX_AGE, TGT)
+                                                   PHASE_REF_OBJECT, POSE_MAX_AGE, POSE_NOISE_M, TGT)
 from lerobot_physvla.core.corrections.release_veto import RELEASE_CARRY, carried_phase
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
 from lerobot_physvla.core.geometry import measured, scene_distances
 from lerobot_physvla.core.phase import PHASE_NAMES, phase_of
+from lerobot_physvla.core.pose_filter import pose_filter
 from lerobot_physvla.core.state import (INVALID_STATE, MISSING_POSE, NONFINITE_ACTION, NONFINITE_STATE, OK,
                                        STALE_POSE, UNSUPPORTED_GOAL, field_offsets)
 
 _CORE = Path(__file__).resolve().parent
-# every file compiled into phase_step: this one, the FSM, the state's status codes, the scene's distances, the
-# corrections
+# every file compiled into phase_step: this one, the FSM, the state's status codes, the scene's distances, the pose
+# filter, the corrections
 SOURCE_FILES = (Path(__file__).resolve(), _CORE / "phase.py", _CORE / "state.py", _CORE / "geometry.py",
-                *sorted((_CORE / "corrections").glob("*.py")))
+                _CORE / "pose_filter.py", *sorted((_CORE / "corrections").glob("*.py")))
 ON_RELEASE_VETO = slots.ON["release_veto"]
 
 
@@ -171,6 +173,8 @@ def _compile(key: int):
                 g[EEF + k] = row[o[1] + k]
                 g[OBJ + k] = row[o[2] + k]
                 g[TGT + k] = row[o[4] + k]
+            if p[POSE_NOISE_M] > 0.0:  # noisy poses: filtered over the steps their motion is known (pose_filter.py)
+                pose_filter(row, o[1], o[2], o[3], o[4], row[FINGERS_AT], p, mem[i], commit, g)
             d_obj = np.hypot(g[EEF] - g[OBJ], g[EEF + 1] - g[OBJ + 1])
             lift = g[OBJ + 2] - row[o[3]]
             ref = OBJ if q[PHASE_REF_OBJECT] > 0.5 and lift > h_lift else EEF  # what d_tgt_xy measures from

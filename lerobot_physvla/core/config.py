@@ -18,6 +18,7 @@ import numpy as np
 
 from lerobot_physvla.core.corrections import CORRECTIONS
 from lerobot_physvla.core.corrections.base import Field
+from lerobot_physvla.core.pose_filter import residual_m
 
 Mode = Literal["baseline", "temporal", "phys", "phys_el"]
 MODES: tuple[str, ...] = ("baseline", "temporal", "phys", "phys_el")
@@ -207,6 +208,9 @@ CORE_FIELDS: tuple = (
               "'Pose error'); 0 = exact, as a simulator's state is"),
         Field("pose_max_age_steps", int, 5, 5, "the oldest pose a correction acts on (the state's pose_age), control "
               "steps; an older one passes the action through (stale_pose)"),
+        Field("pose_noise_m", float, 0.0, 0.0, "the poses' per-step noise, a standard deviation on each axis, m: the "
+              "corrector filters each pose over the steps its motion is known (core/pose_filter.py) and the "
+              "corrections answer to pose_error_m + 2 x what the filter leaves; 0 = no filter"),
     )),
 )
 LATE_FIELDS: tuple = (  # after the corrections' own
@@ -297,6 +301,9 @@ class _Methods:
                              f"{self.lowpass_rough_lo}, {self.lowpass_rough_hi}")
         if not 0.0 <= self.pose_error_m < float("inf"):
             raise ValueError(f"physvla: pose_error_m must be a finite distance >= 0 (m), got {self.pose_error_m}")
+        if not 0.0 <= self.pose_noise_m < float("inf"):
+            raise ValueError(f"physvla: pose_noise_m must be a finite standard deviation >= 0 (m), got "
+                             f"{self.pose_noise_m}")
         if not (isinstance(self.pose_max_age_steps, int) and self.pose_max_age_steps >= 0):
             raise ValueError(f"physvla: pose_max_age_steps must be an int >= 0 (control steps), got "
                              f"{self.pose_max_age_steps!r}")
@@ -311,6 +318,12 @@ class _Methods:
     def caps(self) -> tuple[float, float, float, float]:
         """The blender's authority per phase (approach, grasp, transport, place)."""
         return tuple(self.phase_caps) if self.phase_caps else (self.cap,) * 4
+
+    @property
+    def pose_error_told_m(self) -> float:
+        """The pose error the corrections answer to, m: pose_error_m, plus twice the noise the pose filter leaves
+        (core/pose_filter.py residual_m) where pose_noise_m turns it on."""
+        return self.pose_error_m + 2.0 * residual_m(self.pose_noise_m)
 
     def for_policy(self, actions_per_call: int) -> PhysVLAConfig:
         """The configuration for a policy that executes `actions_per_call` actions of each policy call

@@ -379,7 +379,7 @@ class Corrector:
     def _float_params(self) -> np.ndarray:
         cfg, lay = self.cfg, self.layout
         fp = np.zeros(N_FP)
-        e = cfg.pose_error_m  # the pose error the distances answer to (docs/method.md, "Pose error"), m
+        e = cfg.pose_error_told_m  # the pose error the distances answer to (docs/method.md, "Pose error"), m
         # eq. 3's lift threshold + e: an error alone never says "lifted"
         fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_CAP] = cfg.delta_grasp_m, cfg.h_lift_m + e, cfg.cap
         fp[FP_GRIP_OPEN], fp[FP_LOW], fp[FP_HIGH] = lay.gripper_open, lay.low, lay.high

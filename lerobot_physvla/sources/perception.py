@@ -108,6 +108,16 @@ class PerceptionConfig:
         """The larger of the two poses' bounds (PoseFaults.error_bound_m), m."""
         return max(self.object.error_bound_m, self.target.error_bound_m)
 
+    @property
+    def bias_m(self) -> float:
+        """The larger of the two poses' biases, m: what pose_error_m is told when pose_noise_m tells the noise."""
+        return max(self.object.bias_m, self.target.bias_m)
+
+    @property
+    def noise_m(self) -> float:
+        """The larger of the two poses' per-step noise sigmas, m: the truth for pose_noise_m."""
+        return max(self.object.noise_m, self.target.noise_m)
+
 
 _POSES = (("object", "obj_pos"), ("target", "target_pos"))
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from lerobot_physvla.core.corrections import slots
 from lerobot_physvla.core.corrections.base import (GRIPPER_CLOSED, GRIPPER_OPEN, HIGH, LOW, METRES_PER_UNIT,
-                                                   PHASE_REF_OBJECT, POSE_ERROR_M, POSE_MAX_AGE)
+                                                   PHASE_REF_OBJECT, POSE_ERROR_M, POSE_MAX_AGE, POSE_NOISE_M)
 from lerobot_physvla.core.corrections.base import Correction  # noqa: F401  (re-exported)
 
 CORRECTIONS: tuple = tuple(importlib.import_module(f"{__name__}.{f.stem}").CORRECTION for f in slots.files())
@@ -56,7 +56,8 @@ def params(cfg, layout) -> np.ndarray:
     p[GRIPPER_CLOSED] = layout.gripper_shut
     p[LOW], p[HIGH] = layout.low, layout.high
     p[PHASE_REF_OBJECT] = cfg.phase_ref == "object"
-    p[POSE_ERROR_M], p[POSE_MAX_AGE] = cfg.pose_error_m, cfg.pose_max_age_steps
+    p[POSE_ERROR_M], p[POSE_MAX_AGE] = cfg.pose_error_told_m, cfg.pose_max_age_steps
+    p[POSE_NOISE_M] = cfg.pose_noise_m
     on = active(cfg)
     for c in CORRECTIONS:
         p[slots.ON[c.name]] = c.name in on

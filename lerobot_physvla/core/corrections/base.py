@@ -13,7 +13,8 @@ Each correction is a numba function of one env that edits the candidate action i
                          fingers = the gripper's opening (m)
     p       (N_PARAMS,)  parameters: the shared slots (slots.SHARED), then each correction's on-flag and
                          its own PARAMS (corrections/slots.py lays them out from the files)
-    mem     (N_MEM,)     this env's memory, each correction's own MEMORY; written only when commit is True
+    mem     (N_MEM,)     this env's memory, each correction's own MEMORY (then the pose filter's, slots.SHARED_MEMORY);
+                         written only when commit is True
     commit  bool         True for the step about to execute (a chunk's first), False for
                          look-ahead steps of a chunk, which must leave memory untouched
 
@@ -39,9 +40,9 @@ EEF, OBJ, TGT = 0, 3, 6  # xyz triples, m
 D_OBJ_XY, D_TGT_XY, LIFT, FINGERS = 9, 10, 11, 12  # m
 N_GEO = 13
 # the shared parameter slots (slots.SHARED)
-METRES_PER_UNIT, GRIPPER_OPEN, LOW, HIGH, PHASE_REF_OBJECT, POSE_ERROR_M, POSE_MAX_AGE, GRIPPER_CLOSED = (
-    P_SLOTS[n] for n in ("METRES_PER_UNIT", "GRIPPER_OPEN", "LOW", "HIGH", "PHASE_REF_OBJECT", "POSE_ERROR_M",
-                         "POSE_MAX_AGE", "GRIPPER_CLOSED"))
+(METRES_PER_UNIT, GRIPPER_OPEN, LOW, HIGH, PHASE_REF_OBJECT, POSE_ERROR_M, POSE_MAX_AGE, GRIPPER_CLOSED,
+ POSE_NOISE_M) = (P_SLOTS[n] for n in ("METRES_PER_UNIT", "GRIPPER_OPEN", "LOW", "HIGH", "PHASE_REF_OBJECT",
+                                       "POSE_ERROR_M", "POSE_MAX_AGE", "GRIPPER_CLOSED", "POSE_NOISE_M"))
 # A gripper command g closes where (g - c) (open - c) < 0, c = (open + closed) / 2 the midpoint of the layout's
 # open and closed commands (p[GRIPPER_OPEN], p[GRIPPER_CLOSED]); c = 0 exactly for a command symmetric about 0,
 # where this is the sign test g * open < 0. The kernels write it out (a helper here would be compiled into

@@ -26,7 +26,7 @@ def grasp_guidance(a_raw, a_phys, idx, geo, p, mem, commit):
 
 
 CORRECTION = Correction("grasp_guidance", GRASP, 0, grasp_guidance, values={
-    "BETA": lambda c, lay: c.beta * max(0.0, 1.0 - c.pose_error_m / c.delta_grasp_m), "OFFSET_X_M": lambda c, lay: c.grasp_offset_m[0],
+    "BETA": lambda c, lay: c.beta * max(0.0, 1.0 - c.pose_error_told_m / c.delta_grasp_m), "OFFSET_X_M": lambda c, lay: c.grasp_offset_m[0],
     "OFFSET_Y_M": lambda c, lay: c.grasp_offset_m[1], "OFFSET_Z_M": lambda c, lay: c.grasp_offset_m[2]},
     fields=(Field("beta", float, 0.0, 0.5, "the blend's weight toward the grasp point (0: the policy's action)"),
             Field("grasp_offset_m", tuple[float, float, float], (0.0, 0.0, 0.0), (0.0, 0.0, 0.0),

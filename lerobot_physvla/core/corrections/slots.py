@@ -9,7 +9,7 @@ slots with their sizes, as literals:
 This module reads those declarations from the files' source (it imports none of them), so that the
 layout does not depend on which module is imported first: p holds the shared slots (SHARED), then each
 file's on-flag and PARAMS, files in name order; the memory row holds each file's MEMORY, in the same
-order. A correction file takes its own indices with `params(__file__)` / `memory(__file__)`; the numba
+order, then the corrector's own (SHARED_MEMORY). A correction file takes its own indices with `params(__file__)` / `memory(__file__)`; the numba
 kernels see them as constants. Slot names are unique across files.
 """
 
@@ -22,9 +22,13 @@ HERE = Path(__file__).resolve().parent
 NOT_CORRECTIONS = {"__init__.py", "base.py", "slots.py"}
 # the shared parameter slots, first in p: the layout's scale and bounds, the place rule's choice, the phase
 # machine's reference point (PhysVLAConfig.phase_ref), the pose error the corrections tolerate (m), the
-# oldest pose they act on (control steps) and the layout's closed gripper command (ActionLayout.gripper_shut)
+# oldest pose they act on (control steps), the layout's closed gripper command (ActionLayout.gripper_shut) and the
+# poses' per-step noise the pose filter answers to (m; 0: no filter, core/pose_filter.py)
 SHARED = ("METRES_PER_UNIT", "GRIPPER_OPEN", "LOW", "HIGH", "PHASE_REF_OBJECT", "POSE_ERROR_M", "POSE_MAX_AGE",
-          "GRIPPER_CLOSED")
+          "GRIPPER_CLOSED", "POSE_NOISE_M")
+# memory of the corrector's own, after the corrections': the pose filter's (core/pose_filter.py)
+SHARED_MEMORY = (("POSE_OBJ", 3), ("POSE_TGT", 3), ("POSE_EEF", 3), ("POSE_REST", 1), ("POSE_SEEN", 1), ("POSE_OUT", 2),
+                 ("POSE_OPEN", 1))
 
 
 def files() -> list[Path]:
@@ -63,6 +67,12 @@ def _layout():
             own.append(start)
             start += size
         own_mem[f.stem] = tuple(own)
+    start = sum(n for _, n in mem.values())
+    for name, size in SHARED_MEMORY:
+        if name in mem:
+            raise RuntimeError(f"corrections/slots.py: memory slot {name} is declared twice")
+        mem[name] = (start, size)
+        start += size
     return p, {k: v[0] for k, v in mem.items()}, sum(n for _, n in mem.values()), on, own_p, own_mem
 
 
