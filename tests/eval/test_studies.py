@@ -168,6 +168,31 @@ def test_a_rule_fails_on_a_complete_cell_and_waits_on_an_incomplete_one():
         cmp.Check.from_dict({"metric": "vibes"})
 
 
+def test_kept_is_the_candidates_gain_over_baseline_as_a_fraction_of_the_references():
+    kept = cmp.Check.from_dict({"metric": "kept", "min": 0.75})
+    base, ref = _rows([False] * 4), _rows([True, True, True, True])  # the reference gains 4
+    cell = {"baseline": base, "reference": ref, "n": 4}
+    assert cmp.evaluate(kept, {"a": cell | {"candidate": _rows([True, True, True, False])}}, ["a"]) == (True, "a 0.75")
+    assert cmp.evaluate(kept, {"a": cell | {"candidate": _rows([True, True, False, False])}}, ["a"]) == (False, "a 0.50")
+    assert cmp.evaluate(kept, {"a": cell | {"candidate": _rows([True] * 2)}}, ["a"])[0] is None  # incomplete
+    assert cmp.kept(_rows([True]), _rows([False]), _rows([False])) == float("inf")  # nothing to keep, nothing lost
+    assert cmp.kept(_rows([False]), _rows([True]), _rows([True])) == float("-inf")  # nothing to keep, one lost
+
+
+def test_a_study_tells_the_noise_as_noise_and_then_the_error_bound_as_the_bias_alone(tmp_path):
+    f = tmp_path / "told.toml"
+    f.write_text("""
+[configs]
+bound = {preset = "default", pose_error_m = "truth", perception = {bias_m = 0.01, noise_m = 0.005}}
+filtered = {preset = "default", pose_error_m = "truth", pose_noise_m = "truth", perception = {bias_m = 0.01, noise_m = 0.005}}
+""")
+    st = Study(f)
+    assert st.config("bound")["pose_error_m"] == pytest.approx(0.02) and st.config("bound")["pose_noise_m"] == 0.0
+    assert st.config("filtered")["pose_error_m"] == pytest.approx(0.01)
+    assert st.config("filtered")["pose_noise_m"] == pytest.approx(0.005)
+    assert st.config_hash("bound") != st.config_hash("filtered")
+
+
 # ---------------------------------------------------------------------------------------------- a new study
 
 
