@@ -71,6 +71,7 @@ CONFIGS = {
     "phys_el task_space": PhysVLAConfig.paper(mode="phys_el", weighting="task_space"),
     "phys_el gated": PhysVLAConfig.paper(mode="phys_el", el_mode="gated"),
     "shipped default": PRESETS[DEFAULT_PRESET],
+    "shipped default + pose filter": PRESETS[DEFAULT_PRESET].replace(pose_noise_m=0.01),
     "smooth preset": PRESETS["smooth"],
 }
 

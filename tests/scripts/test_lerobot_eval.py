@@ -85,13 +85,30 @@ def test_pose_faults_on_the_state_export_reach_the_corrector_through_the_real_co
     out = tmp_path / "late"
     r = _eval(policies["state"], out, ["--env.type=libero_physvla", "--env.cameras=false", "--eval.n_episodes=2",
                                        "--eval.batch_size=2", "--env.episode_length=12", "--env.pose_lag_steps=2",
-                                       "--env.pose_bias_m=0.02", "--policy.postprocess=physvla",
-                                       "--physvla.pose_error_m=0.02"])
+                                       "--env.pose_bias_m=0.02", "--env.pose_noise_m=0.01", "--policy.postprocess=physvla",
+                                       "--physvla.pose_error_m=0.02", "--physvla.pose_noise_m=0.01"],
+              {"PHYSVLA_SAVE_STATES": "1"})
     diag = json.loads((out / "physvla_diagnostics.json").read_text())
     # lag 2: no pose has arrived in each episode's first 2 steps; every later one is 2 steps old, within the bound
     assert diag["passthrough"] == {"missing_pose": 4} and diag["steps"] == 24
-    assert diag["physvla_config"]["pose_error_m"] == 0.02
+    assert diag["physvla_config"]["pose_error_m"] == 0.02 and diag["physvla_config"]["pose_noise_m"] == 0.01
     assert "missing_pose" in r.stdout + r.stderr
+    # the corrector filtered the noisy poses it was given (core/pose_filter.py): a fresh one replays the run, and its
+    # object distance differs from the unfiltered poses' on every step after the first with a pose
+    npz = np.load(out / "physvla_states.npz")
+    cfg = PhysVLAConfig.from_dict(diag["physvla_config"])
+    for k in range(2):
+        states, raw, corrected = npz[f"ep{k}_states"], npz[f"ep{k}_raw"], npz[f"ep{k}_corrected"]
+        filtered, plain = Corrector(cfg), Corrector(cfg.replace(pose_noise_m=0.0))
+        d_f, d_p, outs = [], [], []
+        for t in range(len(raw)):
+            st = PhysState.unpack(states[t])
+            outs.append(filtered(raw[t : t + 1], st)[0])
+            plain(raw[t : t + 1], st)
+            d_f.append(filtered.last.d_obj_xy[0])
+            d_p.append(plain.last.d_obj_xy[0])
+        np.testing.assert_allclose(corrected, np.stack(outs), rtol=0, atol=1e-12)
+        assert np.isnan(d_f[:2]).all() and np.all(np.abs(np.subtract(d_f[3:], d_p[3:])) > 1e-9)
 
 
 def test_a_goal_outside_the_model_is_one_row_per_episode_with_its_task_and_its_reason(policies, tmp_path):
