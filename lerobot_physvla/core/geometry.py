@@ -13,6 +13,9 @@ height (metres):
     rim guide     r - pad_w              the pad's centre on the wall: the rim grasp of an object the hand cannot
                                          close across (2 w_o > span); no pull where it can (a can, a box, a
                                          bottle is grasped whole)                                 bowl 4.59 cm (4.7)
+    centre slack  span/2 - w_o           the room an open hand has on either side of an object it closes across:
+                                         the pose error the centre guide tolerates (no pull on a rim grasp, nor
+                                         with the fixed distances)                                bowl: no pull
     rim zone      delta_grasp + span     an open hand whose far pad is within a span of the edge  bowl 14.2 cm (14)
                   top + RIM_HOVER_M      and no higher above the top than a policy's hover        bowl 15.0 cm (15)
     veto height   top + pad_h            a pad whose centre is above this misses the object       bowl 6.01 cm (6)
@@ -34,6 +37,7 @@ import math
 from numba import njit
 
 from lerobot_physvla.core.corrections.base import POSE_ERROR_M
+from lerobot_physvla.core.corrections.centre_guide import CENTRE_SLACK_M, NO_PULL_M
 from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M
 from lerobot_physvla.core.corrections.release_veto import CARRY_REACH_M
 from lerobot_physvla.core.corrections.rim_guide import RIM_GUIDE_M, RIM_HEIGHT_M, RIM_REACH_M, RIM_SLACK_M
@@ -69,8 +73,10 @@ def scene_distances(row, o_scene, p, pe, veto_cfg, veto_out):
     if 2.0 * w_o > span:  # the hand cannot close across it: a rim grasp, the pad's centre on the wall
         pe[RIM_GUIDE_M] = r - pad_w
         pe[RIM_SLACK_M] = d_grasp - pe[RIM_GUIDE_M]
-    else:  # grasped whole: no rim to pull to
+        pe[CENTRE_SLACK_M] = NO_PULL_M
+    else:  # grasped whole: no rim to pull to; the centre guide's room on either side
         pe[RIM_SLACK_M] = -1.0
+        pe[CENTRE_SLACK_M] = 0.5 * span - w_o
     pe[RIM_REACH_M] = d_grasp + span
     pe[RIM_HEIGHT_M] = top + RIM_HOVER_M
     if p[REDIRECT_TOL_M] > 0.0:

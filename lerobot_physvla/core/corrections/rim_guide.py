@@ -70,7 +70,7 @@ def rim_guide(a_raw, a_phys, idx, geo, p, mem, commit):
     gripper untouched. Called in the approach phase only; rim_track keeps the hand's history."""
     dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
     on = (low_open and 1e-9 < rho < p[RIM_REACH_M] and p[POSE_ERROR_M] < p[RIM_SLACK_M]
-          and (mem[RIM_ON] > 0.5 or _settled(geo, mem)))
+          and (mem[RIM_ON] > 0.5 or settled(geo, mem, RIM_TRACK, RIM_AT)))
     if on:
         _pull(a_phys, idx, geo, p, dx, dy, rho)
     if commit:
@@ -98,21 +98,28 @@ def _pull(a_phys, idx, geo, p, dx, dy, rho):
 
 
 @njit(error_model="numpy")
-def _settled(geo, mem) -> bool:
-    """The hand moved under RIM_SETTLE_M (x, y) since RIM_SETTLE_STEPS control steps ago."""
-    if mem[RIM_AT] < RIM_SETTLE_STEPS:
+def settled(geo, mem, track, at) -> bool:
+    """The hand moved under RIM_SETTLE_M (x, y) since RIM_SETTLE_STEPS control steps ago, by the track kept in
+    mem[track : track + 2 RIM_SETTLE_STEPS] with its count of steps in mem[at] (`track_hand`)."""
+    if mem[at] < RIM_SETTLE_STEPS:
         return False
-    k = RIM_TRACK + 2 * (int(mem[RIM_AT]) % RIM_SETTLE_STEPS)
+    k = track + 2 * (int(mem[at]) % RIM_SETTLE_STEPS)
     ex, ey = geo[EEF] - mem[k], geo[EEF + 1] - mem[k + 1]
     return ex * ex + ey * ey < RIM_SETTLE_M * RIM_SETTLE_M
 
 
 @njit(error_model="numpy")
+def track_hand(geo, mem, track, at):
+    """Record the hand's x, y into the track at mem[track] (RIM_SETTLE_STEPS entries, the count in mem[at])."""
+    k = track + 2 * (int(mem[at]) % RIM_SETTLE_STEPS)
+    mem[k], mem[k + 1] = geo[EEF], geo[EEF + 1]
+    mem[at] += 1.0
+
+
+@njit(error_model="numpy")
 def rim_track(geo, mem):
     """Record the hand's x, y (every committed step, every phase) for the settle test."""
-    k = RIM_TRACK + 2 * (int(mem[RIM_AT]) % RIM_SETTLE_STEPS)
-    mem[k], mem[k + 1] = geo[EEF], geo[EEF + 1]
-    mem[RIM_AT] += 1.0
+    track_hand(geo, mem, RIM_TRACK, RIM_AT)
 
 
 @njit(error_model="numpy")

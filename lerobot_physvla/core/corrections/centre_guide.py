@@ -1,0 +1,86 @@
+"""Grasp: a pull onto the object's centre for an open hand that has settled over an object it can close
+across (beyond the paper; centre_guide). centre_guide_approach runs the same kernel in the approach phase.
+
+    whole:    2 w_o <= span: the hand closes across the object's narrower side (a can, a box, a bottle: grasped
+              whole, no rim to pull to); known only from a measured scene (geometry = "scene", core/geometry.py):
+              with the fixed distances it never pulls
+    beside:   rho < RIM_REACH_M,  p_eef_z - p_obj_z < RIM_HEIGHT_M   (the rim zone: delta_grasp + span and
+              top + RIM_HOVER_M on the scene), rho = |p_eef - p_obj|_xy, metres
+    settled:  |p_eef_xy - p_eef_xy(RIM_SETTLE_STEPS steps ago)| < RIM_SETTLE_M   (rim_guide.py's test)
+    open:     the policy does not command closed
+    in the approach and grasp phases (the object not lifted), once beside, settled and open (then while beside
+    and open, moving or not):
+        a_xy <- clip((p_obj_xy - p_eef_xy) / metres_per_unit, -1, 1)
+    z and the gripper stay the policy's; the pull ends where the policy closes, the hand leaves the zone or
+    the object is lifted. Unlike the rim guide's, it goes on at the centre (a zero pull holds the hand there
+    against a policy that aims beside it), so the fingers close around the object's centre.
+    pose error (pose_error_m = e): the pull aims the hand at the object's pose, so e moves the grasp by up to e;
+    it pulls only while e < span / 2 - w_o (CENTRE_SLACK_M: the room an open hand has on either side of the
+    object across its narrower side), and leaves the hand to the policy beyond.
+
+Traced failure: docs/decisions/25-centre-guide.md (the jittery shape expert's grasps aimed beside an object the
+hand closes around, on LIBERO-Object, -Goal and -10).
+"""
+
+from numba import njit
+
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import EEF, METRES_PER_UNIT, OBJ, POSE_ERROR_M, X, Y, Correction, Field
+from lerobot_physvla.core.corrections.rim_guide import RIM_REACH_M, _where, settled, track_hand
+from lerobot_physvla.core.phase import APPROACH, GRASP
+
+# the pose error it tolerates, m: span / 2 - w_o for an object the hand closes across, -1 (no pull) for any other
+# or with no measured scene (core/geometry.py)
+PARAMS = ("CENTRE_SLACK_M",)
+# the hand's x, y (m) over the last RIM_SETTLE_STEPS committed steps; steps recorded so far; 1.0 while it pulls
+MEMORY = (("CENTRE_TRACK", 10), ("CENTRE_AT", 1), ("CENTRE_ON", 1))
+(CENTRE_SLACK_M,) = slots.params(__file__)
+CENTRE_TRACK, CENTRE_AT, CENTRE_ON = slots.memory(__file__)
+POSE = "aims the hand at the object's pose: no pull once pose_error_m >= span / 2 - the object's narrower half-extent"
+NO_PULL_M = -1.0  # CENTRE_SLACK_M where the object is not known to be grasped whole
+
+
+@njit(error_model="numpy")
+def centre_guide(a_raw, a_phys, idx, geo, p, mem, commit):
+    """x, y commanded onto the object's origin for an open hand settled beside an object it can close across
+    (the approach and grasp phases); z and the gripper untouched."""
+    dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
+    on = (low_open and rho < p[RIM_REACH_M] and p[POSE_ERROR_M] < p[CENTRE_SLACK_M]
+          and (mem[CENTRE_ON] > 0.5 or settled(geo, mem, CENTRE_TRACK, CENTRE_AT)))
+    if on:
+        for k, c in ((X, 0), (Y, 1)):
+            a_phys[idx[k]] = min(max((geo[OBJ + c] - geo[EEF + c]) / p[METRES_PER_UNIT], -1.0), 1.0)
+    if commit:
+        mem[CENTRE_ON] = 1.0 if on else 0.0
+
+
+@njit(error_model="numpy")
+def centre_guide_commit(phase, geo, p, mem):
+    """The pull ends once the object is lifted (transport, place); the hand's x, y are recorded on every committed
+    step for the settle test."""
+    if phase != APPROACH and phase != GRASP:
+        mem[CENTRE_ON] = 0.0
+    track_hand(geo, mem, CENTRE_TRACK, CENTRE_AT)
+
+
+CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
+                        values={"CENTRE_SLACK_M": lambda c, lay: NO_PULL_M},
+                        on=lambda c: c.centre_guide, commit=centre_guide_commit,
+                        fields=(Field("centre_guide", bool, False, False, "an open hand settled low over an object "
+                                      "it can close across is pulled onto the object's centre until it closes "
+                                      "(needs geometry=scene)"),),
+                        check=lambda c: _check(c),
+                        pose=POSE)
+
+
+def _check(c) -> None:
+    if c.centre_guide and c.action_layout.absolute:
+        raise ValueError("physvla: centre_guide commands a delta layout's x, y; this layout's positions are "
+                         "absolute targets: leave centre_guide off")
+    if c.centre_guide and c.geometry != "scene":
+        raise ValueError("physvla: centre_guide pulls only onto an object the scene shows the hand can close "
+                         "across; set geometry='scene' (the default) or leave centre_guide off")
+    for caps, name in ((c.caps, "phase_caps"), (tuple(c.chunk_phase_caps), "chunk_phase_caps")):
+        if c.centre_guide and caps and caps[1] == 0.0:
+            raise ValueError(f"physvla: centre_guide acts with the grasp phase's authority, which is 0 in {name}: "
+                             f"set {name} with a grasp entry above 0 (e.g. (1, 1, 0, 1)), or leave it off")
