@@ -3,7 +3,8 @@ neither, Wilson and paired intervals, per-task regressions, jerk and degradation
 rule evaluated from its declarative spec (a list of checks in a study file).
 
 Every function takes episode rows (eval/store.py) already selected for one configuration; rows pair
-on (task_id, seed): the same init state and the same drawn faults.
+on (scene, task_id, seed): the same init state and the same drawn faults (a row from before rows named their
+scene pairs on its task and seed alone).
 """
 
 from __future__ import annotations
@@ -36,13 +37,19 @@ def aggregate(rows: list[dict]) -> dict:
     return out
 
 
+def _pair_key(r: dict) -> tuple[str, int, int]:
+    return r.get("scene", ""), r["task_id"], r["seed"]
+
+
 def paired(this: list[dict], base: list[dict]) -> dict:
-    """Paired outcomes of `this` against `base` over the (task, seed) pairs both ran: won / lost / both /
+    """Paired outcomes of `this` against `base` over the (scene, task, seed) pairs both ran: won / lost / both /
     neither, the mean per-pair success difference with its 95 % interval (normal approximation of the mean
-    of differences in {-1, 0, 1}), the mean per-pair jerk ratio, and the tasks where `this` lost net."""
-    a_by = {(r["task_id"], r["seed"]): r for r in this}
-    b_by = {(r["task_id"], r["seed"]): r for r in base}
+    of differences in {-1, 0, 1}), the mean per-pair jerk ratio, and the tasks where `this` lost net (by task id,
+    or "<scene>/<task id>" where the rows span several scenes)."""
+    a_by = {_pair_key(r): r for r in this}
+    b_by = {_pair_key(r): r for r in base}
     keys = sorted(set(a_by) & set(b_by))
+    several = len({k[0] for k in keys}) > 1
     won = lost = both = neither = 0
     d, dj = [], []
     per_task = defaultdict(lambda: [0, 0])
@@ -54,8 +61,9 @@ def paired(this: list[dict], base: list[dict]) -> dict:
         neither += not (a["success"] or b["success"])
         d.append(int(a["success"]) - int(b["success"]))
         dj.append(a["mean_jerk"] / b["mean_jerk"] if b["mean_jerk"] > 0 else np.nan)
-        per_task[key[0]][0] += int(a["success"])
-        per_task[key[0]][1] += int(b["success"])
+        task = f"{key[0]}/{key[1]}" if several else key[1]
+        per_task[task][0] += int(a["success"])
+        per_task[task][1] += int(b["success"])
     n = len(d)
     mean = float(np.mean(d)) if n else float("nan")
     half = Z95 * float(np.std(d, ddof=1)) / np.sqrt(n) if n > 1 else float("nan")
@@ -85,17 +93,6 @@ def degradation(at_zero: list[dict], at_noise: list[dict]) -> float:
 def degradation_ratio(base: float, this: float) -> float:
     """Baseline's jerk degradation over this configuration's (paper Table A1: ~10x)."""
     return base / this if this > 0 else float("inf")
-
-
-def task_regressions(this: list[dict], base: list[dict]) -> dict[int, tuple[int, int, int]]:
-    """Tasks where `this` succeeds fewer times than `base`: {task: (this successes, base successes, n)}."""
-    out = {}
-    for t in sorted({r["task_id"] for r in this}):
-        a = [r for r in this if r["task_id"] == t]
-        b = [r for r in base if r["task_id"] == t]
-        if b and sum(r["success"] for r in a) < sum(r["success"] for r in b):
-            out[t] = (sum(r["success"] for r in a), sum(r["success"] for r in b), len(a))
-    return out
 
 
 # ---------------------------------------------------------------------------------------------- decision rules

@@ -51,8 +51,16 @@ def pp(p: dict, digits: int = 0) -> str:
     return f"{p['diff'] * 100:+.{digits}f} pp [{p['ci'][0] * 100:+.{digits}f}, {p['ci'][1] * 100:+.{digits}f}]"
 
 
+def _task(t) -> str:
+    """A task of compare.paired's task_losses: "T6", or "libero_goal T6" where the pairs span several scenes."""
+    if isinstance(t, str):
+        scene, task = t.rsplit("/", 1)
+        return f"{scene} T{task}"
+    return f"T{t}"
+
+
 def paired_row(label: str, p: dict) -> str:
-    tl = ", ".join(f"T{t} -{k}" for t, k in sorted(p["task_losses"].items())) or "none"
+    tl = ", ".join(f"{_task(t)} -{k}" for t, k in sorted(p["task_losses"].items())) or "none"
     return (f"| {label} | {p['n']} | {pct(p['base_success'])} | {pct(p['success'])} | {pp(p)} | {p['won']} / {p['lost']} "
             f"/ {p['both']} / {p['neither']} | {p['jerk_ratio']:.2f} | {tl} |")
 

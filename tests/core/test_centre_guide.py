@@ -1,0 +1,122 @@
+"""The centre guide (core/corrections/centre_guide.py): an open hand settled beside an object the hand can close
+across is pulled onto its origin in x, y, in the approach and grasp phases, until the policy closes; never on a
+rim-grasped bowl, never without a measured scene, never past the pose error the object's room tolerates."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from lerobot_physvla.core.config import LIBERO_OSC_POSE, PRESETS, ActionLayout, PhysVLAConfig
+from lerobot_physvla.core.corrections import params
+from lerobot_physvla.core.corrections.centre_guide import CENTRE_SLACK_M
+from lerobot_physvla.core.corrections.rim_guide import RIM_SETTLE_STEPS
+from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.core.geometry import scene_distances
+from lerobot_physvla.core.phase import Phase
+from lerobot_physvla.core.state import SCENE, PhysState, field_offsets
+
+# measured on the scenes (sources/geometry.py): radius, half width, top of the object, the target's half width, the
+# Panda's span and pads, m
+BOWL = (0.05389, 0.05350, 0.05213, 0.06873, 0.08, 0.008, 0.008)  # LIBERO-Spatial's akita bowl on its plate
+CREAM_CHEESE = (0.041, 0.021, 0.009, 0.06, 0.08, 0.008, 0.008)  # LIBERO-Goal task 6's box into a bowl
+ON = PRESETS["default"].replace(centre_guide=True)
+
+
+def slack(scene, cfg=ON) -> float:
+    n = 7
+    row = np.zeros(field_offsets(n)["scene"] + len(SCENE))
+    row[field_offsets(n)["scene"]:] = scene
+    p = params(cfg, cfg.action_layout)
+    pe, veto = np.empty_like(p), np.empty(2)
+    scene_distances(row, field_offsets(n)["scene"], p, pe, np.array([cfg.veto_height_m, cfg.veto_reach_m]), veto)
+    return float(pe[CENTRE_SLACK_M])
+
+
+def _run(cfg, eef_xy, scene=CREAM_CHEESE, steps=12, close_at=None, height=0.05, lift=0.0):
+    """A hand hovering at eef_xy (m from the object's origin), `height` above it, commanding a small move toward its
+    own aim (+x); (actions out, policy action, phases)."""
+    c = Corrector(cfg, batch_size=1)
+    outs, phases = [], []
+    a = np.array([[0.2, 0.1, -0.3, 0, 0, 0, -1.0]])  # open (robosuite: - = open)
+    for t in range(steps):
+        s = PhysState.empty(1, 7)
+        s.valid[:], s.dt[:], s.episode_step[:] = 1.0, 0.05, t
+        s.obj_pos[:], s.target_pos[:], s.obj_rest_z[:] = (0.0, 0.0, 0.9 + lift), (0.3, 0.0, 0.9), 0.9
+        s.eef_pos[:] = (eef_xy[0], eef_xy[1], 0.9 + lift + height)
+        s.gripper[:] = 0.08
+        s.M[:], s.J_pos[:, :, :3] = np.eye(7), np.eye(3)
+        s.scene[:] = scene
+        act = a.copy()
+        if close_at is not None and t >= close_at:
+            act[0, 6] = 1.0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            outs.append(c(act, s)[0])
+        phases.append(int(c.last.phase[0]))
+    return np.array(outs), a[0], phases
+
+
+@pytest.mark.parametrize("xy, phase", [((0.02, -0.015), Phase.GRASP), ((0.05, 0.0), Phase.APPROACH)])
+def test_a_settled_open_hand_beside_a_box_it_closes_across_is_pulled_onto_its_origin_in_x_y_only(xy, phase):
+    """The traced failure: the jittery expert aims its grasp beside a box (2.5 cm off: within delta_grasp, the grasp
+    phase; 5 cm: beyond it, the approach phase) and closes there, a finger on top of it. From the first settled step
+    on, x, y point at the origin (clipped to 1 action unit); z, the rotation and the gripper stay the policy's."""
+    outs, a, phases = _run(ON, xy)
+    assert set(phases) == {phase}
+    np.testing.assert_array_equal(outs[:RIM_SETTLE_STEPS], np.tile(a, (RIM_SETTLE_STEPS, 1)))  # not yet settled
+    mpu = LIBERO_OSC_POSE.metres_per_unit
+    want = np.clip(-np.asarray(xy) / mpu, -1, 1)
+    for o in outs[RIM_SETTLE_STEPS:]:
+        np.testing.assert_allclose(o[:2], want)
+        np.testing.assert_array_equal(o[2:], a[2:])
+    # the shipped default leaves it to the policy
+    outs, a, _ = _run(PRESETS["default"], xy)
+    np.testing.assert_array_equal(outs, np.tile(a, (len(outs), 1)))
+
+
+def test_at_the_centre_the_pull_is_zero_and_holds_the_hand_against_a_policy_aiming_beside_it():
+    outs, a, _ = _run(ON, (0.0, 0.0))
+    assert (outs[RIM_SETTLE_STEPS:, :2] == 0.0).all() and (a[:2] != 0.0).all()
+
+
+def test_no_pull_once_the_policy_closes_the_hand_is_high_or_the_object_is_lifted():
+    outs, a, _ = _run(ON, (0.02, 0.0), close_at=8)
+    assert (outs[RIM_SETTLE_STEPS:8, 0] < 0).all()  # pulled while open
+    np.testing.assert_array_equal(outs[8:, :6], np.tile(a[:6], (len(outs) - 8, 1)))  # the close: the policy's
+    for kw in ({"height": 0.2}, {"lift": 0.05}):  # above top + 9.8 cm; carried (the transport phase)
+        outs, a, _ = _run(ON, (0.02, 0.0), **kw)
+        np.testing.assert_array_equal(outs[:, :6], np.tile(a[:6], (len(outs), 1)))
+
+
+def test_it_never_pulls_on_a_rim_grasped_bowl_nor_without_a_measured_scene():
+    """LIBERO-Spatial's objects are all bowls wider than the hand opens: the centre guide changes no action there."""
+    assert slack(BOWL) < 0 and slack(CREAM_CHEESE) == pytest.approx(0.04 - 0.021)
+    for scene in (BOWL, np.nan):
+        on, _, _ = _run(ON, (0.02, -0.015), scene=scene)
+        off, _, _ = _run(PRESETS["default"], (0.02, -0.015), scene=scene)
+        np.testing.assert_array_equal(on, off)
+
+
+def test_the_pose_error_it_tolerates_is_the_room_beside_the_object():
+    room = 0.04 - 0.021
+    pulled, a, _ = _run(ON.replace(pose_error_m=room * 0.9), (0.02, 0.0))
+    left, _, _ = _run(ON.replace(pose_error_m=room * 1.1), (0.02, 0.0))
+    assert pulled[-1, 0] < 0
+    np.testing.assert_array_equal(left[:, 0], np.full(len(left), a[0]))
+
+
+def test_the_configuration_refuses_what_it_cannot_do_and_old_configurations_load_without_it():
+    with pytest.raises(ValueError, match="geometry"):
+        PhysVLAConfig(centre_guide=True, geometry="fixed")
+    with pytest.raises(ValueError, match="grasp phase's authority"):
+        PhysVLAConfig(centre_guide=True, phase_caps=(1.0, 0.0, 0.0, 1.0))
+    with pytest.raises(ValueError, match="centre_guide commands a delta layout"):
+        PhysVLAConfig(centre_guide=True, layout=ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, absolute=True),
+                      rim_guide_m=0.0, lift_assist_u=0.0)
+    assert not PhysVLAConfig().centre_guide and not PhysVLAConfig.paper().centre_guide
+    d = ON.to_dict()
+    del d["centre_guide"]
+    assert PhysVLAConfig.from_dict(d) == PRESETS["default"]
