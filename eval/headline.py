@@ -185,31 +185,44 @@ SUITES = {"object": "LIBERO-Object", "goal": "LIBERO-Goal", "ten": "LIBERO-10",
           "image": "LIBERO-Spatial, agentview camera"}
 
 
-# the scripted teacher's study, the ACTs distilled from it, and the image-input ACT (eval/studies/image_act.toml)
-SUITE_STUDIES = ("suites", "suites_learned", "image_act")
+# the scripted teacher's study, the ACTs distilled from it, the image-input ACT (eval/studies/image_act.toml), and the
+# centre guide's confirmation blocks (eval/studies/centre_guide.toml: the option `centre_guide` beside the shipped
+# default, docs/decisions/25-centre-guide.md)
+SUITE_STUDIES = ("suites", "suites_learned", "image_act", "centre_guide")
+BEFORE, NOW = "shipped default", "default + centre guide"
+
+
+def _vs_baseline(rows: list[dict], base: list[dict]) -> str:
+    if not rows or not base:
+        return "-"
+    p = cmp.paired(rows, base)
+    return f"{p['success']:.0%} ({p['diff'] * 100:+.0f} [{p['ci'][0] * 100:+.0f}, {p['ci'][1] * 100:+.0f}])"
 
 
 def suites_table() -> list[str]:
-    """Baseline and the shipped default on the other LIBERO suites (eval/studies/suites.toml and suites_learned.toml,
-    pre-registered): success, and the paired difference against baseline [95 % CI]; a cell not run yet says so."""
-    lines = ["| suite (tasks, init states) | policy | baseline | shipped default |", "|---|---|---|---|"]
+    """Baseline, the shipped default (as frozen at 519c8932 for the pre-registered test) and the shipped default with
+    `centre_guide=true` on the other LIBERO suites (eval/studies/suites.toml, suites_learned.toml, image_act.toml,
+    centre_guide.toml): success, and the paired difference against baseline [95 % CI]; "-" where a configuration did
+    not run on a block."""
+    lines = ["| suite (tasks, init states) | policy | baseline | shipped default | with `centre_guide=true` |",
+             "|---|---|---|---|---|"]
     loaded = [_load(name) for name in SUITE_STUDIES]
     for bn, title in SUITES.items():
         for study, rows in loaded:
-            if bn not in study.blocks:
-                continue
-            bl = study.blocks[bn]
-            where = f"{title} ({len(bl.tasks)} tasks, {bl.seeds[0]}-{bl.seeds[-1]})"
-            for b in bl.backbones:
-                n = len(bl.tasks) * len(bl.seeds)
-                base, ship = rows.get("baseline", b, bl), rows.get("shipped default", b, bl)
-                if len(base) < n or len(ship) < n:
-                    if study.name == "suites":  # the learned rows join once they have run
-                        lines.append(f"| {where} | {b} | not run yet | not run yet |")
+            for name, bl in study.blocks.items():
+                if name != bn and name != f"{bn}_weak":
                     continue
-                p = cmp.paired(ship, base)
-                lines.append(f"| {where} | {b} | {p['base_success']:.0%} | {p['success']:.0%} ({p['diff'] * 100:+.0f} "
-                             f"[{p['ci'][0] * 100:+.0f}, {p['ci'][1] * 100:+.0f}]) |")
+                where = f"{title} ({len(bl.tasks)} tasks, {bl.seeds[0]}-{bl.seeds[-1]})"
+                for b in bl.backbones:
+                    n = len(bl.tasks) * len(bl.seeds)
+                    base, before = rows.get("baseline", b, bl), rows.get(BEFORE, b, bl)
+                    now = rows.get(NOW, b, bl) if NOW in study.config_specs else []
+                    if len(base) < n or len(before) < n:
+                        if study.name == "suites":  # the learned rows join once they have run
+                            lines.append(f"| {where} | {b} | not run yet | not run yet | - |")
+                        continue
+                    lines.append(f"| {where} | {b} | {sum(r['success'] for r in base) / len(base):.0%} | "
+                                 f"{_vs_baseline(before, base)} | {_vs_baseline(now, base)} |")
     return lines
 
 

@@ -7,8 +7,8 @@ configuration turns on (its on-flag in p), in their declared order, each on the 
 ones left; on a committed step, every turned-on correction's memory upkeep; then the clip to the bounds.
 With the shipped declarations:
 
-    approach   rim_guide where it is on (it replaces approach_veto), else approach_veto
-    grasp      grasp_guidance, then lift_assist, then rim_guide_grasp (each where it is on)
+    approach   rim_guide where it is on (it replaces approach_veto), else approach_veto; then centre_guide_approach
+    grasp      grasp_guidance, then lift_assist, then rim_guide_grasp, then centre_guide (each where it is on)
     transport  transport_smoothing
     place      place_deceleration (eq. 5), place_redirect or release_veto (place_rule), then release_assist
     (mode temporal: temporal_ema in every phase, instead of the above)

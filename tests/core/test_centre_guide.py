@@ -23,6 +23,7 @@ from lerobot_physvla.core.state import SCENE, PhysState, field_offsets
 BOWL = (0.05389, 0.05350, 0.05213, 0.06873, 0.08, 0.008, 0.008)  # LIBERO-Spatial's akita bowl on its plate
 CREAM_CHEESE = (0.041, 0.021, 0.009, 0.06, 0.08, 0.008, 0.008)  # LIBERO-Goal task 6's box into a bowl
 ON = PRESETS["default"].replace(centre_guide=True)
+OFF = PRESETS["default"].replace(centre_guide=False)
 
 
 def slack(scene, cfg=ON) -> float:
@@ -72,8 +73,8 @@ def test_a_settled_open_hand_beside_a_box_it_closes_across_is_pulled_onto_its_or
     for o in outs[RIM_SETTLE_STEPS:]:
         np.testing.assert_allclose(o[:2], want)
         np.testing.assert_array_equal(o[2:], a[2:])
-    # the shipped default leaves it to the policy
-    outs, a, _ = _run(PRESETS["default"], xy)
+    # without it the policy's action goes through
+    outs, a, _ = _run(OFF, xy)
     np.testing.assert_array_equal(outs, np.tile(a, (len(outs), 1)))
 
 
@@ -91,13 +92,13 @@ def test_no_pull_once_the_policy_closes_the_hand_is_high_or_the_object_is_lifted
         np.testing.assert_array_equal(outs[:, :6], np.tile(a[:6], (len(outs), 1)))
 
 
-def test_it_never_pulls_on_a_rim_grasped_bowl_nor_without_a_measured_scene():
+def test_it_never_pulls_on_a_rim_grasped_bowl_nor_without_a_measured_scene_nor_with_the_fixed_distances():
     """LIBERO-Spatial's objects are all bowls wider than the hand opens: the centre guide changes no action there."""
     assert slack(BOWL) < 0 and slack(CREAM_CHEESE) == pytest.approx(0.04 - 0.021)
-    for scene in (BOWL, np.nan):
-        on, _, _ = _run(ON, (0.02, -0.015), scene=scene)
-        off, _, _ = _run(PRESETS["default"], (0.02, -0.015), scene=scene)
-        np.testing.assert_array_equal(on, off)
+    for scene, cfg in ((BOWL, ON), (np.nan, ON), (CREAM_CHEESE, ON.replace(geometry="fixed"))):
+        pulled, _, _ = _run(cfg, (0.02, -0.015), scene=scene)
+        left, _, _ = _run(OFF.replace(geometry=cfg.geometry), (0.02, -0.015), scene=scene)
+        np.testing.assert_array_equal(pulled, left)
 
 
 def test_the_pose_error_it_tolerates_is_the_room_beside_the_object():
@@ -109,14 +110,12 @@ def test_the_pose_error_it_tolerates_is_the_room_beside_the_object():
 
 
 def test_the_configuration_refuses_what_it_cannot_do_and_old_configurations_load_without_it():
-    with pytest.raises(ValueError, match="geometry"):
-        PhysVLAConfig(centre_guide=True, geometry="fixed")
     with pytest.raises(ValueError, match="grasp phase's authority"):
         PhysVLAConfig(centre_guide=True, phase_caps=(1.0, 0.0, 0.0, 1.0))
     with pytest.raises(ValueError, match="centre_guide commands a delta layout"):
         PhysVLAConfig(centre_guide=True, layout=ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, absolute=True),
                       rim_guide_m=0.0, lift_assist_u=0.0)
-    assert not PhysVLAConfig().centre_guide and not PhysVLAConfig.paper().centre_guide
+    assert not PhysVLAConfig.paper().centre_guide and not PRESETS["arm"].centre_guide
     d = ON.to_dict()
     del d["centre_guide"]
-    assert PhysVLAConfig.from_dict(d) == PRESETS["default"]
+    assert PhysVLAConfig.from_dict(d) == OFF  # saved before it existed: as it acted then

@@ -33,7 +33,8 @@ EPISODES = {"table2": 600, "ablation": 350, "place_bias": 60, "lift_sweep": 420,
             "learned": 14220, "learned_checkpoints": 550, "learned_mid": 2600, "learned_v0": 600, "learned_fixes": 200,
             "so101_faults": 1200, "efficacy": 16895, "rim_guide_5cm": 150, "pose_error": 1700,
             "pose_error_arms": 900, "geometry_scene": 550, "suites": 948, "metaworld": 1800, "suites_learned_select": 500, "suites_learned": 300,
-            "image_act": 100, "pose_filter": 1050, "pose_filter_arms": 600, "pose_bias_split": 100}
+            "image_act": 100, "pose_filter": 1050, "pose_filter_arms": 600, "pose_bias_split": 100,
+            "centre_guide": 1324, "centre_guide_arms": 424}
 
 
 def test_every_study_readme_is_what_its_data_gives():
@@ -141,6 +142,18 @@ def test_paired_counts_interval_and_task_losses():
     assert worse["task_losses"] == {0: 1} and worse["success"] == 0 and worse["base_success"] == 0.5
     pool = cmp.pooled([p, worse])
     assert pool["n"] == 7 and pool["won"] == 2 and pool["lost"] == 2
+
+
+def test_paired_keeps_the_scenes_of_one_comparison_apart():
+    """Blocks of several scenes in one comparison share task ids and seeds: each scene's episode pairs with its own."""
+    goal = [dict(r, scene="libero_goal") for r in _rows([True, False], task=6)]
+    ten = [dict(r, scene="libero_10") for r in _rows([False, False], task=6)]
+    goal_base = [dict(r, scene="libero_goal") for r in _rows([False, False], task=6)]
+    ten_base = [dict(r, scene="libero_10") for r in _rows([False, True], task=6)]
+    p = cmp.paired(goal + ten, ten_base + goal_base)
+    assert (p["n"], p["won"], p["lost"], p["neither"]) == (4, 1, 1, 2)
+    assert p["task_losses"] == {"libero_10/6": 1}
+    assert report.paired_row("x", p).endswith("| libero_10 T6 -1 |")
 
 
 def test_degradation_ratio_is_baselines_growth_over_the_candidates():

@@ -8,7 +8,8 @@ its parameters and memory, when the configuration turns it on and what it replac
     temporal_ema         the `temporal` mode's uniform EMA (the paper's smoothing foil)
 
 Beyond the paper (docs/method.md; how each was chosen: docs/decisions/): place_redirect, release_veto,
-release_assist (place), lift_assist (grasp), rim_guide (approach) and rim_guide_grasp (grasp).
+release_assist (place), lift_assist (grasp), rim_guide (approach), rim_guide_grasp (grasp), centre_guide (grasp)
+and centre_guide_approach (the same pull in the approach phase).
 
 This module collects the declarations (CORRECTIONS, in slots.files() order) and turns a configuration into
 the parameter vector p (`params`); `lerobot_physvla.core.branch_a` assembles the per-phase dispatch from

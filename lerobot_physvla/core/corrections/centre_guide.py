@@ -68,7 +68,7 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                         on=lambda c: c.centre_guide, commit=centre_guide_commit,
                         fields=(Field("centre_guide", bool, False, False, "an open hand settled low over an object "
                                       "it can close across is pulled onto the object's centre until it closes "
-                                      "(needs geometry=scene)"),),
+                                      "(geometry=scene; with the fixed distances it never pulls)"),),
                         check=lambda c: _check(c),
                         pose=POSE)
 
@@ -77,9 +77,6 @@ def _check(c) -> None:
     if c.centre_guide and c.action_layout.absolute:
         raise ValueError("physvla: centre_guide commands a delta layout's x, y; this layout's positions are "
                          "absolute targets: leave centre_guide off")
-    if c.centre_guide and c.geometry != "scene":
-        raise ValueError("physvla: centre_guide pulls only onto an object the scene shows the hand can close "
-                         "across; set geometry='scene' (the default) or leave centre_guide off")
     for caps, name in ((c.caps, "phase_caps"), (tuple(c.chunk_phase_caps), "chunk_phase_caps")):
         if c.centre_guide and caps and caps[1] == 0.0:
             raise ValueError(f"physvla: centre_guide acts with the grasp phase's authority, which is 0 in {name}: "
