@@ -112,6 +112,8 @@ def test_the_pose_error_it_tolerates_is_the_room_beside_the_object():
 def test_the_configuration_refuses_what_it_cannot_do_and_old_configurations_load_without_it():
     with pytest.raises(ValueError, match="grasp phase's authority"):
         PhysVLAConfig(centre_guide=True, phase_caps=(1.0, 0.0, 0.0, 1.0))
+    with pytest.raises(ValueError, match="approach phase's authority, which is 0 in chunk_phase_caps"):
+        PhysVLAConfig(centre_guide=True, rim_guide_m=0.0, chunk_phase_caps=(0.0, 1.0, 0.0, 1.0))
     with pytest.raises(ValueError, match="centre_guide commands a delta layout"):
         PhysVLAConfig(centre_guide=True, layout=ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, absolute=True),
                       rim_guide_m=0.0, lift_assist_u=0.0)

@@ -105,6 +105,20 @@ class Correction:
     pose: str = ""
 
 
+def needs_authority(cfg, field: str, phases: tuple[int, ...], off: str) -> None:
+    """ValueError where a correction the configuration turns on acts with the authority of a phase that phase_caps or
+    chunk_phase_caps sets to 0 (it would be silently inert there); `off`: how to turn it off, in words."""
+    from lerobot_physvla.core.phase import PHASE_NAMES
+
+    for caps, name in ((cfg.caps, "phase_caps"), (tuple(cfg.chunk_phase_caps), "chunk_phase_caps")):
+        for ph in phases:
+            if caps and caps[ph] == 0.0:
+                phase = PHASE_NAMES[ph]
+                raise ValueError(f"physvla: {field} acts with the {phase} phase's authority, which is 0 in {name}: set "
+                                 f"{name} with {'an' if phase[0] in 'aeiou' else 'a'} {phase} entry above 0 (e.g. "
+                                 f"(1, 1, 0, 1)), or {off}")
+
+
 def unit_interval(cfg, *names: str) -> None:
     """ValueError unless each named field lies in [0, 1]."""
     for name in names:

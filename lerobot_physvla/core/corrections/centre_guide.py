@@ -25,7 +25,8 @@ hand closes around, on LIBERO-Object, -Goal and -10).
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import EEF, METRES_PER_UNIT, OBJ, POSE_ERROR_M, X, Y, Correction, Field
+from lerobot_physvla.core.corrections.base import (EEF, METRES_PER_UNIT, OBJ, POSE_ERROR_M, X, Y, Correction, Field,
+                                                   needs_authority)
 from lerobot_physvla.core.corrections.rim_guide import RIM_REACH_M, _where, settled, track_hand
 from lerobot_physvla.core.phase import APPROACH, GRASP
 
@@ -77,7 +78,5 @@ def _check(c) -> None:
     if c.centre_guide and c.action_layout.absolute:
         raise ValueError("physvla: centre_guide commands a delta layout's x, y; this layout's positions are "
                          "absolute targets: leave centre_guide off")
-    for caps, name in ((c.caps, "phase_caps"), (tuple(c.chunk_phase_caps), "chunk_phase_caps")):
-        if c.centre_guide and caps and caps[1] == 0.0:
-            raise ValueError(f"physvla: centre_guide acts with the grasp phase's authority, which is 0 in {name}: "
-                             f"set {name} with a grasp entry above 0 (e.g. (1, 1, 0, 1)), or leave it off")
+    if c.centre_guide:
+        needs_authority(c, "centre_guide", (GRASP, APPROACH), "leave it off")

@@ -42,7 +42,7 @@ from numba import njit
 
 from lerobot_physvla.core.corrections import slots
 from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, METRES_PER_UNIT, OBJ,
-                                                   POSE_ERROR_M, X, Y, Correction, Field)
+                                                   POSE_ERROR_M, X, Y, Correction, Field, needs_authority)
 from lerobot_physvla.core.phase import APPROACH, GRASP
 
 # the distance from the object's origin the hand is pulled to; the pose error it tolerates; the zone beside the object:
@@ -150,7 +150,5 @@ def _check(c) -> None:
     if c.rim_guide_m > 0.0 and c.action_layout.absolute:
         raise ValueError("physvla: rim_guide_m commands a delta layout's x, y; this layout's positions are "
                          "absolute targets: leave rim_guide_m at 0")
-    for caps, name in ((c.caps, "phase_caps"), (tuple(c.chunk_phase_caps), "chunk_phase_caps")):
-        if c.rim_guide_m > 0.0 and caps and caps[0] == 0.0:
-            raise ValueError(f"physvla: rim_guide_m acts with the approach phase's authority, which is 0 in {name}: "
-                             f"set {name} with an approach entry above 0 (e.g. (1, 1, 0, 1)), or rim_guide_m=0")
+    if c.rim_guide_m > 0.0:
+        needs_authority(c, "rim_guide_m", (APPROACH,), "rim_guide_m=0")

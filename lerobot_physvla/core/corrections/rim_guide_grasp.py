@@ -10,7 +10,7 @@ Traced failure: docs/decisions/19-rim-guide-into-grasp.md (a hand chattering at 
 
 from numba import njit
 
-from lerobot_physvla.core.corrections.base import Correction, Field
+from lerobot_physvla.core.corrections.base import Correction, Field, needs_authority
 from lerobot_physvla.core.corrections.rim_guide import RIM_ARRIVE_M, RIM_GUIDE_M, RIM_ON, _pull, _where
 from lerobot_physvla.core.phase import GRASP
 
@@ -39,7 +39,5 @@ def _check(c) -> None:
     if c.rim_guide_into_grasp and c.rim_guide_m == 0.0:
         raise ValueError("physvla: rim_guide_into_grasp goes on with the rim guide's pull; set rim_guide_m "
                          "(e.g. 0.047) or leave rim_guide_into_grasp off")
-    for caps, name in ((c.caps, "phase_caps"), (tuple(c.chunk_phase_caps), "chunk_phase_caps")):
-        if c.rim_guide_into_grasp and caps and caps[1] == 0.0:
-            raise ValueError(f"physvla: rim_guide_into_grasp acts with the grasp phase's authority, which is 0 in "
-                             f"{name}: set {name} with a grasp entry above 0 (e.g. (1, 1, 0, 1)), or leave it off")
+    if c.rim_guide_into_grasp:
+        needs_authority(c, "rim_guide_into_grasp", (GRASP,), "leave it off")
