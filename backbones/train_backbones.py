@@ -198,9 +198,11 @@ MID_CHOICE: dict[str, tuple[str, int]] = {"act_single_mid": (f"{CPU_DRAW_DIR}/ac
 # from the shape-planning expert (`record_dataset.py --suite S --seeds 20-39`: init states 20-39, DART
 # 0.1 and 0.3, successful episodes only) into outputs/train/<suite>/<recipe>:
 #     .venv/bin/python backbones/train_backbones.py act_single --suite libero_object
+# LIBERO-Goal and LIBERO-10 (whose init states 5-19 earlier studies hold) record 20-34 instead and select on
+# 35-39, act_chunk only so far (eval/studies/learned_goal_ten_select.toml).
 # Which checkpoints become backbones, written before any of them trained: every checkpoint of a run
-# (steps 1/5 .. 5/5) runs uncorrected on the suite's selection block (init states 10-14;
-# eval/studies/suites_learned_select.toml), then (`choose_suite`)
+# (steps 1/5 .. 5/5) runs uncorrected on the suite's selection block (LIBERO-Object init states 10-14,
+# eval/studies/suites_learned_select.toml; Goal and 10 35-39), then (`choose_suite`)
 #  - strong, `<short>_<recipe>`: the latest checkpoint whose success lies in STRONG_BAND; if none does,
 #    the final one, reported as outside the band;
 #  - weaker sibling, `<short>_<recipe>_weak`: of the other checkpoints, the one in WEAK_BAND closest to
