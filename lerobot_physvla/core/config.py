@@ -57,6 +57,11 @@ class ActionLayout:
             holding still is 0); True for absolute targets (holding still is the last target).
             The gripper channel is always treated as absolute. Used by the safe hold action that
             replaces a non-finite policy action.
+        step_gain: the fraction of a position gap (m) the centre guide commands in one step, as a ratio:
+            1 where the action sets the step's goal from where the hand is (OSC_POSE, Fetch); below 1 where it
+            moves a target the hand trails and integrates, so a full-gap command every step would wind the
+            target up past the goal (MetaWorld's mocap: 0.25, its own scripted policies' gain of 25 times the
+            action scale).
     """
 
     dim: int
@@ -69,6 +74,7 @@ class ActionLayout:
     high: float = 1.0
     absolute: bool = False
     gripper_closed: float | None = None
+    step_gain: float = 1.0
 
     def __post_init__(self) -> None:
         used = list(self.pos) + list(self.rot) + ([self.gripper] if self.gripper is not None else [])
@@ -78,6 +84,8 @@ class ActionLayout:
             raise ValueError(f"ActionLayout indices {used} must be distinct and in [0, {self.dim})")
         if not self.metres_per_unit > 0:
             raise ValueError(f"metres_per_unit must be > 0, got {self.metres_per_unit}")
+        if not 0 < self.step_gain <= 1:
+            raise ValueError(f"step_gain must be in (0, 1], got {self.step_gain}")
         if not (np.isfinite(self.low) and np.isfinite(self.high)):
             raise ValueError(f"ActionLayout bounds must be finite, got [{self.low}, {self.high}]")
         if not self.low < self.high or not self.low <= self.gripper_open <= self.high:
@@ -149,7 +157,9 @@ FETCH_4D = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, metres_per_unit=0.05, g
 
 # MetaWorld (Sawyer, mocap): [dx, dy, dz, g]; the mocap target moves action * 0.01 m a step (SawyerXYZEnv.action_scale;
 # the tool centre follows at that speed once moving, measured), g: +1 closes, -1 opens (the finger servos get [g, -g]).
-METAWORLD = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, metres_per_unit=0.01, gripper_open=-1.0)
+# The target integrates the actions and the hand trails it: a pull commands a quarter of the gap a step, as
+# metaworld's own scripted policies do (policies/policy.py move(..., p=25) times action_scale 0.01).
+METAWORLD = ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, metres_per_unit=0.01, gripper_open=-1.0, step_gain=0.25)
 
 LAYOUTS: dict[str, ActionLayout] = {"libero_osc_pose": LIBERO_OSC_POSE, "fetch_4d": FETCH_4D, "metaworld": METAWORLD}
 

@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from lerobot_physvla.core.config import LIBERO_OSC_POSE, PRESETS, ActionLayout, PhysVLAConfig
+from lerobot_physvla.core.config import LIBERO_OSC_POSE, METAWORLD, PRESETS, ActionLayout, PhysVLAConfig
 from lerobot_physvla.core.corrections import params
 from lerobot_physvla.core.corrections.centre_guide import CENTRE_SLACK_M
 from lerobot_physvla.core.corrections.rim_guide import RIM_SETTLE_STEPS
@@ -38,10 +38,12 @@ def slack(scene, cfg=ON) -> float:
 
 def _run(cfg, eef_xy, scene=CREAM_CHEESE, steps=12, close_at=None, height=0.05, lift=0.0):
     """A hand hovering at eef_xy (m from the object's origin), `height` above it, commanding a small move toward its
-    own aim (+x); (actions out, policy action, phases)."""
+    own aim (+x); (actions out, policy action, phases). On a 4-channel layout the action is [x, y, z, gripper]."""
     c = Corrector(cfg, batch_size=1)
     outs, phases = [], []
     a = np.array([[0.2, 0.1, -0.3, 0, 0, 0, -1.0]])  # open (robosuite: - = open)
+    if cfg.action_layout.dim == 4:
+        a = a[:, [0, 1, 2, 6]]
     for t in range(steps):
         s = PhysState.empty(1, 7)
         s.valid[:], s.dt[:], s.episode_step[:] = 1.0, 0.05, t
@@ -52,12 +54,27 @@ def _run(cfg, eef_xy, scene=CREAM_CHEESE, steps=12, close_at=None, height=0.05, 
         s.scene[:] = scene
         act = a.copy()
         if close_at is not None and t >= close_at:
-            act[0, 6] = 1.0
+            act[0, -1] = 1.0
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             outs.append(c(act, s)[0])
         phases.append(int(c.last.phase[0]))
     return np.array(outs), a[0], phases
+
+
+def test_on_a_layout_whose_target_the_hand_trails_the_pull_commands_the_layouts_step_gain_of_the_gap():
+    """MetaWorld's action moves a mocap target the hand trails: a full-gap command every step wound it up past the
+    puck (docs/decisions/25-centre-guide.md). There the pull commands step_gain (0.25) of the gap a step, as
+    metaworld's own scripted policies do; LIBERO's OSC keeps the full gap (the test above)."""
+    assert METAWORLD.step_gain == 0.25 and LIBERO_OSC_POSE.step_gain == 1.0
+    xy = (0.004, -0.002)  # m: 0.4 / 0.2 action units of a full-gap command, 0.1 / 0.05 with the gain
+    on = ON.replace(layout="metaworld", weighting="task_space")
+    outs, a, phases = _run(on, xy)
+    assert set(phases) == {Phase.GRASP}
+    np.testing.assert_allclose(outs[-1][:2], -0.25 * np.asarray(xy) / METAWORLD.metres_per_unit)
+    np.testing.assert_array_equal(outs[-1][2:], a[2:])
+    with pytest.raises(ValueError, match="step_gain"):
+        ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, step_gain=1.5)
 
 
 @pytest.mark.parametrize("xy, phase", [((0.02, -0.015), Phase.GRASP), ((0.05, 0.0), Phase.APPROACH)])

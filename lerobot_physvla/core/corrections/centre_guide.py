@@ -10,7 +10,10 @@ across (beyond the paper; centre_guide). centre_guide_approach runs the same ker
     open:     the policy does not command closed
     in the approach and grasp phases (the object not lifted), once beside, settled and open (then while beside
     and open, moving or not):
-        a_xy <- clip((p_obj_xy - p_eef_xy) / metres_per_unit, -1, 1)
+        a_xy <- clip(k (p_obj_xy - p_eef_xy) / metres_per_unit, -1, 1)
+    k: the layout's step_gain (CENTRE_GAIN), 1 where the action sets the step's goal from the hand (LIBERO's OSC),
+    below 1 where the action moves a target the hand trails (MetaWorld's mocap, 0.25), which a full-gap pull
+    every step would wind up past the object.
     z and the gripper stay the policy's; the pull ends where the policy closes, the hand leaves the zone or
     the object is lifted. Unlike the rim guide's, it goes on at the centre (a zero pull holds the hand there
     against a policy that aims beside it), so the fingers close around the object's centre.
@@ -32,10 +35,11 @@ from lerobot_physvla.core.phase import APPROACH, GRASP
 
 # the pose error it tolerates, m: span / 2 - w_o for an object the hand closes across, -1 (no pull) for any other
 # or with no measured scene (core/geometry.py)
-PARAMS = ("CENTRE_SLACK_M",)
+# and the fraction of the gap it commands a step (ActionLayout.step_gain)
+PARAMS = ("CENTRE_SLACK_M", "CENTRE_GAIN")
 # the hand's x, y (m) over the last RIM_SETTLE_STEPS committed steps; steps recorded so far; 1.0 while it pulls
 MEMORY = (("CENTRE_TRACK", 10), ("CENTRE_AT", 1), ("CENTRE_ON", 1))
-(CENTRE_SLACK_M,) = slots.params(__file__)
+CENTRE_SLACK_M, CENTRE_GAIN = slots.params(__file__)
 CENTRE_TRACK, CENTRE_AT, CENTRE_ON = slots.memory(__file__)
 POSE = "aims the hand at the object's pose: no pull once pose_error_m >= span / 2 - the object's narrower half-extent"
 NO_PULL_M = -1.0  # CENTRE_SLACK_M where the object is not known to be grasped whole
@@ -50,7 +54,7 @@ def centre_guide(a_raw, a_phys, idx, geo, p, mem, commit):
           and (mem[CENTRE_ON] > 0.5 or settled(geo, mem, CENTRE_TRACK, CENTRE_AT)))
     if on:
         for k, c in ((X, 0), (Y, 1)):
-            a_phys[idx[k]] = min(max((geo[OBJ + c] - geo[EEF + c]) / p[METRES_PER_UNIT], -1.0), 1.0)
+            a_phys[idx[k]] = min(max(p[CENTRE_GAIN] * (geo[OBJ + c] - geo[EEF + c]) / p[METRES_PER_UNIT], -1.0), 1.0)
     if commit:
         mem[CENTRE_ON] = 1.0 if on else 0.0
 
@@ -65,7 +69,8 @@ def centre_guide_commit(phase, geo, p, mem):
 
 
 CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
-                        values={"CENTRE_SLACK_M": lambda c, lay: NO_PULL_M},
+                        values={"CENTRE_SLACK_M": lambda c, lay: NO_PULL_M,
+                                "CENTRE_GAIN": lambda c, lay: lay.step_gain},
                         on=lambda c: c.centre_guide, commit=centre_guide_commit,
                         fields=(Field("centre_guide", bool, False, False, "an open hand settled low over an object "
                                       "it can close across is pulled onto the object's centre until it closes "
