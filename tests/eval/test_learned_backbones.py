@@ -328,20 +328,28 @@ def test_the_suite_paths_and_repo_id_follow_the_suite():
         train_backbones.suite_paths("libero_90")
 
 
+# each suite's selection study (its results directory) and the episodes it ran per checkpoint
+SELECTION = {"libero_object": ("suites_learned_select", 50), "libero_goal": ("learned_goal_ten_select", 30),
+             "libero_10": ("learned_goal_ten_select", 30)}
+
+
 def test_the_kept_suite_acts_are_the_ones_the_rule_chose_on_their_selection_block():
     """SUITE_CHOICE (which checkpoints are each suite's ACT backbones) must be what choose_suite gives on the
-    uncorrected episodes eval/results/suites_learned_select recorded (every checkpoint, n = 50), not a hand pick;
-    and each committed copy holds the weights those episodes ran."""
+    uncorrected episodes its selection study recorded (every checkpoint; LIBERO-Object eval/results/
+    suites_learned_select, n = 50; LIBERO-Goal and -10 eval/results/learned_goal_ten_select, n = 30), not a hand
+    pick; and each committed copy holds the weights those episodes ran."""
     import hashlib
 
     from store import Store, config_hash
 
     from lerobot_physvla.core.config import PhysVLAConfig
 
-    data = Store(ROOT / "eval/results/suites_learned_select")
     uncorrected = config_hash(PhysVLAConfig.paper(mode="baseline").to_dict())
     checked = 0
+    assert set(SELECTION) == set(train_backbones.SUITE_SHORT)
     for suite, short in train_backbones.SUITE_SHORT.items():
+        study, n = SELECTION[suite]
+        data = Store(ROOT / "eval/results" / study)
         for recipe in train_backbones.SUITE_RECIPES:
             rate, sha = {}, {}
             for r in data.rows:
@@ -352,7 +360,7 @@ def test_the_kept_suite_acts_are_the_ones_the_rule_chose_on_their_selection_bloc
             if not rate:  # this suite's ACTs are not trained yet: no backbone of theirs may be named
                 assert not any(k.startswith(f"{short}_{recipe}") for k in train_backbones.SUITE_CHOICE)
                 continue
-            assert len(rate) == train_backbones.CHECKPOINTS_PER_RUN and all(len(v) == 50 for v in rate.values())
+            assert len(rate) == train_backbones.CHECKPOINTS_PER_RUN and all(len(v) == n for v in rate.values())
             strong, weak = train_backbones.choose_suite({s: float(np.mean(v)) for s, v in rate.items()})
             kept = {f"{short}_{recipe}": strong} | ({f"{short}_{recipe}_weak": weak} if weak is not None else {})
             for name, step in kept.items():
