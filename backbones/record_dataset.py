@@ -1,11 +1,12 @@
-"""Record scripted-expert rollouts on a LIBERO suite into a local LeRobotDataset (v3), state only.
+"""Record scripted-expert rollouts on a LIBERO suite or on MetaWorld into a local LeRobotDataset (v3), state only.
 
     .venv/bin/python backbones/record_dataset.py [--suite libero_spatial] [--out outputs/datasets/physvla_<suite>]
         [--seeds 10-39] [--tasks 0-9] [--dart-sigma 0.1,0.3] [--workers 2] [--camera-size 0]
 
 The teacher: LIBERO-Spatial's bowl expert (sim/experts.py) on libero_spatial, the shape-planning expert
-(sim/shape_expert.py) on the other suites (`--teacher` to choose). Each suite's horizon is lerobot's
-(sim/scenes.py HORIZONS).
+(sim/shape_expert.py) on the other suites (`--teacher` to choose), and on `--suite metaworld` each task's own
+scripted policy from metaworld.policies (sim/metaworld_expert.py; `--tasks` are the modelled tasks' indices,
+sim/metaworld_sim.py TASKS). Each suite's horizon is lerobot's (sim/scenes.py HORIZONS); MetaWorld's is 500.
 
 Each frame holds what a state-based policy sees in `lerobot-eval --env.type=libero_physvla
 --env.cameras=false` (scenes.LiberoScene.policy_observation):
@@ -13,6 +14,11 @@ Each frame holds what a state-based policy sees in `lerobot-eval --env.type=libe
     observation.environment_state  object xyz, target xyz (from the BDDL goal) (6, float32)
     action                         the clean expert's action, LIBERO OSC_POSE  (7, float32)
     task                           the task's language instruction
+On MetaWorld, what `--env.type=metaworld_physvla --env.cameras=false` gives (sim/metaworld_sim.py
+MetaworldScene.policy_observation), at its 80 fps:
+    observation.state              hand xyz, finger opening (MetaWorld's agent_pos)  (4, float32)
+    observation.environment_state  object xyz, target xyz (the task's own)            (6, float32)
+    action                         the clean policy's action, [dx, dy, dz, grab]      (4, float32)
 With --camera-size N the frames hold what an image-input policy sees in `lerobot-eval --env.type=libero
 --env.observation_height=N --env.observation_width=N` instead (no object or target position):
     observation.state              as above                                   (8, float32)
@@ -55,10 +61,22 @@ FEATURES = {
     "action": {"dtype": "float32", "shape": (7,), "names": ACTION_NAMES},
 }
 IMAGE = "observation.images.image"
+METAWORLD = "metaworld"
+METAWORLD_FPS = 80  # lerobot's MetaworldEnvConfig.fps (the env's 12.5 ms control step)
+METAWORLD_FEATURES = {
+    "observation.state": {"dtype": "float32", "shape": (4,), "names": ["hand_x", "hand_y", "hand_z", "fingers"]},
+    "observation.environment_state": FEATURES["observation.environment_state"],
+    "action": {"dtype": "float32", "shape": (4,), "names": ["dx", "dy", "dz", "grab"]},
+}
 
 
-def features(camera_size: int = 0) -> dict:
-    """The dataset's features: state-only, or (camera_size > 0) state and the agentview frame, no object state."""
+def features(camera_size: int = 0, suite: str = "libero_spatial") -> dict:
+    """The dataset's features: state-only, or (camera_size > 0, LIBERO only) state and the agentview frame, no
+    object state."""
+    if suite == METAWORLD:
+        if camera_size:
+            raise SystemExit("record_dataset: MetaWorld is recorded state-only; leave --camera-size out")
+        return METAWORLD_FEATURES
     if not camera_size:
         return FEATURES
     return {"observation.state": FEATURES["observation.state"],
@@ -66,26 +84,42 @@ def features(camera_size: int = 0) -> dict:
             "action": FEATURES["action"]}
 
 
-def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0, suite: str = "libero_spatial",
-            teacher: str = "bowl", camera_size: int = 0) -> list[dict]:
-    """Expert episodes of one task; returns the successful ones as arrays (runs in a worker)."""
+def scene_and_teacher(suite: str, task_id: int, teacher: str, camera_size: int = 0):
+    """(scene, reset(seed), act(state) -> clean action) of one task's teacher."""
+    if suite == METAWORLD:
+        from lerobot_physvla.sim.metaworld_expert import MetaworldExpert, MetaworldExpertConfig
+        from lerobot_physvla.sim.metaworld_sim import MetaworldScene
+
+        scene = MetaworldScene(task_id)
+        mw = MetaworldExpert(scene.task.name, MetaworldExpertConfig())
+        return scene, (lambda seed: mw.reset(seed=seed)), (lambda st: mw.act(scene.raw_obs))
     from lerobot_physvla.sim.experts import PickPlaceExpert
     from lerobot_physvla.sim.scenes import LiberoScene
     from lerobot_physvla.sim.shape_expert import ShapeExpert
 
     scene = LiberoScene(suite, task_id, camera_size=camera_size, every_step=True)  # lerobot-eval's pixels
     expert = ShapeExpert() if teacher == "shape" else PickPlaceExpert()
+    if teacher == "shape":
+        return scene, (lambda seed: expert.reset(seed=seed)), (lambda st: expert.act_source(scene.source))
+    return scene, (lambda seed: expert.reset(seed=seed)), (
+        lambda st: expert.act(st.eef_pos[0], st.obj_pos[0], st.target_pos[0]))
+
+
+def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0, suite: str = "libero_spatial",
+            teacher: str = "bowl", camera_size: int = 0) -> list[dict]:
+    """Expert episodes of one task; returns the successful ones as arrays (runs in a worker)."""
+    scene, reset, act = scene_and_teacher(suite, task_id, teacher, camera_size)
     episodes = []
     for seed in seeds:
         scene.reset(seed)
-        expert.reset(seed=seed)
+        reset(seed)
         rng = np.random.default_rng(10_000 + seed + 1_000_000 * level)  # level 0: the original draws
         obs_s, obs_e, frames, acts, success = [], [], [], [], False
         for _ in range(scene.horizon):
             st = scene.read()
-            o = scene.policy_observation(st, frame=False)  # the frame is rendered once, below
-            a = (expert.act_source(scene.source) if teacher == "shape"
-                 else expert.act(st.eef_pos[0], st.obj_pos[0], st.target_pos[0]))
+            # the frame is rendered once, below
+            o = scene.policy_observation(st) if suite == METAWORLD else scene.policy_observation(st, frame=False)
+            a = np.asarray(act(st), dtype=np.float64)
             obs_s.append(o["observation.state"])
             obs_e.append(o["observation.environment_state"])
             if camera_size:
@@ -106,13 +140,15 @@ def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0, s
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--suite", default="libero_spatial", help="libero_spatial, libero_object, libero_goal, libero_10")
-    ap.add_argument("--teacher", choices=("bowl", "shape"), default=None,
-                    help="bowl (sim/experts.py) or shape (sim/shape_expert.py); default: bowl on libero_spatial, else shape")
+    ap.add_argument("--suite", default="libero_spatial",
+                    help="libero_spatial, libero_object, libero_goal, libero_10, or metaworld")
+    ap.add_argument("--teacher", choices=("bowl", "shape", METAWORLD), default=None,
+                    help="bowl (sim/experts.py) or shape (sim/shape_expert.py); default: bowl on libero_spatial, "
+                         "MetaWorld's own on metaworld, else shape")
     ap.add_argument("--out", default=None, help="dataset root (replaced); default outputs/datasets/physvla_<suite>")
     ap.add_argument("--repo-id", default=None, help="default local/physvla_<suite>")
     ap.add_argument("--tasks", default="0-9")
-    ap.add_argument("--seeds", default="10-39", help="LIBERO init-state indices to record")
+    ap.add_argument("--seeds", default="10-39", help="LIBERO init-state indices (MetaWorld: seeds) to record")
     ap.add_argument("--dart-sigma", default="0.1,0.3",
                     help="executed-action x, y noise (action units); a comma list records each init state once per level")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
@@ -122,7 +158,11 @@ def main() -> None:
 
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
-    teacher = args.teacher or ("bowl" if args.suite == "libero_spatial" else "shape")
+    teacher = args.teacher or ("bowl" if args.suite == "libero_spatial" else METAWORLD if args.suite == METAWORLD
+                               else "shape")
+    if (teacher == METAWORLD) != (args.suite == METAWORLD):
+        sys.exit("record_dataset: MetaWorld's teacher runs on --suite metaworld only, and only it runs there")
+    feats = features(args.camera_size, args.suite)
     name = f"physvla_{args.suite}" + (f"_agentview{args.camera_size}" if args.camera_size else "")
     args.out = args.out or f"outputs/datasets/{name}"
     args.repo_id = args.repo_id or f"local/{name}"
@@ -140,8 +180,9 @@ def main() -> None:
     out = Path(args.out)
     if out.exists():
         shutil.rmtree(out)
-    ds = LeRobotDataset.create(args.repo_id, fps=FPS, features=features(args.camera_size), root=out, robot_type="panda",
-                               use_videos=False)
+    mw = args.suite == METAWORLD
+    ds = LeRobotDataset.create(args.repo_id, fps=METAWORLD_FPS if mw else FPS, features=feats, root=out,
+                               robot_type="sawyer" if mw else "panda", use_videos=False)
     for ep in tqdm(episodes, desc="writing", unit="episode"):
         for t, (s, e, a) in enumerate(zip(ep["state"], ep["env"], ep["action"])):
             frame = {"observation.state": s, "action": a, "task": ep["task"]}

@@ -237,9 +237,10 @@ def choose_suite(success: dict[int, float]) -> tuple[int, int | None]:
 
 
 def suite_paths(suite: str) -> tuple[str, str]:
-    """(dataset root, training root) of a suite's ACTs."""
-    if suite not in SUITE_SHORT and suite != "libero_spatial":
-        raise SystemExit(f"train_backbones: unknown suite {suite!r}; one of libero_spatial, {', '.join(SUITE_SHORT)}")
+    """(dataset root, training root) of a suite's ACTs (MetaWorld's: `record_dataset.py --suite metaworld`)."""
+    if suite not in SUITE_SHORT and suite not in ("libero_spatial", "metaworld"):
+        raise SystemExit(f"train_backbones: unknown suite {suite!r}; one of libero_spatial, {', '.join(SUITE_SHORT)}, "
+                         "metaworld")
     if suite == "libero_spatial":
         return DATASET, "outputs/train"
     return f"outputs/datasets/physvla_{suite}", f"outputs/train/{suite}"
@@ -470,7 +471,8 @@ def main() -> None:
                     help="a recipe, a `_mid` sibling that continues a committed checkpoint, a resumed CPU run, "
                          "or all recipes")
     ap.add_argument("--suite", default="libero_spatial",
-                    help="whose demonstrations: sets --dataset and --out to outputs/{datasets/physvla_,train/}<suite>")
+                    help="whose demonstrations (a LIBERO suite, or metaworld): sets --dataset and --out to "
+                         "outputs/{datasets/physvla_,train/}<suite>")
     ap.add_argument("--dataset", default=None, help=f"dataset root (default: the suite's; {DATASET})")
     ap.add_argument("--out", default=None, help="training root (default: the suite's; outputs/train)")
     ap.add_argument("--steps", type=int, default=None, help="override the recipe's step count (smoke tests)")

@@ -320,6 +320,7 @@ def test_the_suite_paths_and_repo_id_follow_the_suite():
     assert train_backbones.suite_paths("libero_object") == ("outputs/datasets/physvla_libero_object",
                                                             "outputs/train/libero_object")
     assert train_backbones.suite_paths("libero_spatial") == (train_backbones.DATASET, "outputs/train")
+    assert train_backbones.suite_paths("metaworld") == ("outputs/datasets/physvla_metaworld", "outputs/train/metaworld")
     cmd = train_backbones.command("act_chunk", "outputs/datasets/physvla_libero_goal", "outputs/train/libero_goal")
     assert "--dataset.repo_id=local/physvla_libero_goal" in cmd and "--output_dir=outputs/train/libero_goal/act_chunk" in cmd
     assert "--dataset.repo_id=local/physvla_libero_spatial" in train_backbones.command("act_chunk", train_backbones.DATASET,
@@ -371,3 +372,64 @@ def test_the_kept_suite_acts_are_the_ones_the_rule_chose_on_their_selection_bloc
             if weak is None:
                 assert f"{short}_{recipe}_weak" not in train_backbones.SUITE_CHOICE
     assert checked >= 2  # LIBERO-Object's two recipes at least
+
+
+@pytest.mark.slow
+def test_recorded_metaworld_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
+    """The same agreement on MetaWorld (issue: MetaWorld and the SO-101, backbones from their own teachers): a
+    recorded episode of pick-place's own scripted policy (seed 100, no DART noise), replayed in `--env.type=
+    metaworld_physvla --env.cameras=false` through lerobot-eval's observation path, gives at every frame the
+    recorded agent_pos and object / target xyz, and ends in success; the dataset is MetaWorld's 4-D layout at 80 fps.
+    A --camera-size on MetaWorld is refused before anything runs."""
+    ds = tmp_path / "ds"
+    rec = subprocess.run([sys.executable, str(ROOT / "backbones/record_dataset.py"), "--suite", "metaworld", "--tasks",
+                          "0", "--seeds", "100", "--dart-sigma", "0", "--workers", "1", "--out", str(ds)],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert rec.returncode == 0, rec.stderr[-2000:]
+    info = json.loads((ds / "meta" / "info.json").read_text())
+    assert info["fps"] == 80 and info["robot_type"] == "sawyer" and info["total_episodes"] == 1
+    assert info["features"]["observation.state"]["shape"] == [4] and info["features"]["action"]["shape"] == [4]
+
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    from lerobot.envs.utils import preprocess_observation
+
+    from lerobot_physvla.envs.metaworld_physvla import MetaworldPhysVLAEnvConfig
+
+    data = LeRobotDataset("local/alignment_mw", root=ds)
+    cfg_env = MetaworldPhysVLAEnvConfig(task="pick-place-v3", cameras=False)
+    vec = cfg_env.create_envs(n_envs=1)["pick-place-v3"][0]
+    env_pre, _ = cfg_env.get_env_processors()
+    try:
+        obs, _ = vec.reset(seed=[100])
+        success = False
+        for t in range(data.num_frames):
+            seen = env_pre(preprocess_observation(obs))
+            frame = data[t]
+            for key in ("observation.state", "observation.environment_state"):
+                np.testing.assert_allclose(seen[key][0].numpy(), frame[key].numpy(), atol=1e-4,
+                                           err_msg=f"{key} at frame {t}")
+            obs, _, _, _, info = vec.step(frame["action"].numpy()[None].astype(np.float64))
+            success = bool(info["is_success"][0]) if "is_success" in info else success
+        assert success
+    finally:
+        vec.close()
+    refused = subprocess.run([sys.executable, str(ROOT / "backbones/record_dataset.py"), "--suite", "metaworld",
+                              "--camera-size", "64", "--out", str(tmp_path / "no")], capture_output=True, text=True,
+                             cwd=ROOT)
+    assert refused.returncode != 0 and "state-only" in refused.stderr and not (tmp_path / "no").exists()
+
+    # an ACT trained on it (2 steps) runs in the harness on the MetaWorld scene: 4-D actions from its observation
+    train = subprocess.run([sys.executable, str(ROOT / "backbones/train_backbones.py"), "act_chunk", "--dataset", str(ds),
+                            "--out", str(tmp_path / "train"), "--steps", "2"], capture_output=True, text=True, cwd=ROOT)
+    assert train.returncode == 0, train.stdout[-2000:] + train.stderr[-2000:]
+    from backbones import LeRobotBackbone
+
+    from lerobot_physvla.sim.metaworld_sim import MetaworldScene
+
+    scene, policy = MetaworldScene(0), LeRobotBackbone(str(train_backbones.checkpoint("act_chunk", str(tmp_path / "train"))))
+    scene.reset(100)
+    policy.reset(100)
+    for _ in range(3):
+        a = policy.act(scene, scene.read())
+        assert a.shape == (4,) and np.isfinite(a).all()
+        scene.step(np.clip(a, -1, 1))
