@@ -158,6 +158,43 @@ def check_all() -> list[str]:
     return bad
 
 
+def spans(seeds) -> str:
+    """15, 16, 17, 20 -> '15-17, 20'."""
+    out, run_ = [], []
+    for s in sorted(set(seeds)):
+        if run_ and s != run_[-1] + 1:
+            out.append(f"{run_[0]}-{run_[-1]}" if len(run_) > 1 else str(run_[0]))
+            run_ = []
+        run_.append(s)
+    if run_:
+        out.append(f"{run_[0]}-{run_[-1]}" if len(run_) > 1 else str(run_[0]))
+    return ", ".join(out)
+
+
+def seeds_used(scene: str) -> list[str]:
+    """Every study's blocks on a scene (a LIBERO suite, metaworld, lift_plate, ...), by first seed: the study, the
+    block, its role, its seeds and tasks. Demonstrations and selection blocks outside study files are not here
+    (backbones/README.md says which init states the recorded datasets hold)."""
+    rows = []
+    for f in sorted(STUDIES.glob("*.toml")):
+        study = Study(f)
+        for b, role in study.seed_roles():
+            if b.scene == scene:
+                rows.append((min(b.seeds), f"{spans(b.seeds):<10} {study.name:<24} {b.name:<18} {role:<15} "
+                                           f"{spans(b.tasks)}"))
+    head = f"{'seeds':<10} {'study':<24} {'block':<18} {'role':<15} tasks"
+    return [head] + [r for _, r in sorted(rows)] if rows else [f"no study runs a block on {scene!r}"]
+
+
+def listing() -> list[str]:
+    """Every study file: its name, the episodes its data holds, its title."""
+    out = []
+    for f in sorted(STUDIES.glob("*.toml")):
+        study = Study(f)
+        out.append(f"{study.name:<24} {len(rows_of(study)):>6}  {study.title}")
+    return [f"{'study':<24} {'episodes':>6}  title"] + out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("study", nargs="?", help="a study file, or a name under eval/studies/")
@@ -171,7 +208,16 @@ def main() -> None:
     ap.add_argument("--dry-run", action="store_true", help="say how many episodes would run, run none")
     ap.add_argument("--report-only", action="store_true", help="run nothing; write the README from the data")
     ap.add_argument("--check", action="store_true", help="compare every study's README with its data; exit 1 if any differ")
+    ap.add_argument("--seeds-used", metavar="SCENE", default=None,
+                    help="list every study's blocks on a scene (libero_goal, metaworld, ...): which seeds are taken")
+    ap.add_argument("--list", action="store_true", help="list every study: its episodes on disk and its title")
     args = ap.parse_args()
+    if args.list:
+        print("\n".join(listing()))
+        return
+    if args.seeds_used:
+        print("\n".join(seeds_used(args.seeds_used)))
+        return
     if args.check:
         bad = check_all()
         print("every study's README matches its data" if not bad else f"out of date: {', '.join(bad)}")

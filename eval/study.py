@@ -57,6 +57,7 @@ from pathlib import Path
 EVAL = Path(__file__).resolve().parent
 ROOT = EVAL.parent
 STUDIES = EVAL / "studies"
+UNTOUCHED = range(40, 50)  # LIBERO init states no study may run (on every suite)
 RESULTS = EVAL / "results"
 ROLES = ("design", "confirm")
 
@@ -135,8 +136,23 @@ class Study:
         return list(dict.fromkeys(out))
 
     def _block(self, name: str, b: dict) -> Block:
-        return Block(name, b.get("scene", "libero_spatial"), _span(b.get("tasks", 0)), _span(b["seeds"]),
-                     tuple(self.expand(b.get("backbones", []))))
+        block = Block(name, b.get("scene", "libero_spatial"), _span(b.get("tasks", 0)), _span(b["seeds"]),
+                      tuple(self.expand(b.get("backbones", []))))
+        kept = sorted(s for s in block.seeds if s in UNTOUCHED) if block.scene.startswith("libero_") else []
+        if kept:
+            raise SystemExit(f"study {self.name}: block {name!r} runs LIBERO init states {kept}; {UNTOUCHED.start}-"
+                             f"{UNTOUCHED.stop - 1} of every suite stay untouched by tuning and reporting: choose others "
+                             "(`eval/run.py --seeds-used <scene>` lists what each study holds)")
+        return block
+
+    def seed_roles(self) -> list[tuple[Block, str]]:
+        """Each block with what it is for here: design / confirm (a comparison's), or run (shown, no rule)."""
+        roles: dict[str, list[str]] = {}
+        for c in self.compares:
+            for role, names in c.blocks.items():
+                for n in names:
+                    roles.setdefault(n, []).append(role)
+        return [(b, "/".join(dict.fromkeys(roles.get(n, ["run"])))) for n, b in self.blocks.items()]
 
     def _compare(self, c: dict) -> Compare:
         from compare import Check

@@ -252,3 +252,31 @@ def test_a_study_that_names_an_unknown_configuration_says_which(tmp_path):
     path.write_text(STUDY.replace('candidate = "rim 5 cm"', 'candidate = "rim 6 cm"'))
     with pytest.raises(SystemExit, match="unknown configuration 'rim 6 cm'"):
         Study(path)
+
+
+def test_no_study_may_run_the_untouched_libero_init_states(tmp_path):
+    """Init states 40-49 of every LIBERO suite stay untouched: a study block that reaches into them is refused when the
+    file is read, before anything runs; other scenes' seeds 40-49 are ordinary seeds."""
+    path = tmp_path / "bad.toml"
+    path.write_text(STUDY.replace("seeds = [3, 3]", "seeds = [38, 41]", 1))
+    with pytest.raises(SystemExit, match=r"init states \[40, 41\].*untouched"):
+        Study(path)
+    path.write_text(STUDY.replace("seeds = [3, 3]", "seeds = [38, 41]", 1).replace('scene = "libero_spatial"',
+                                                                                     'scene = "lift_plate"', 1))
+    assert Study(path).blocks["fresh"].seeds == (38, 39, 40, 41)
+
+
+def test_seeds_used_and_list_say_what_the_study_files_hold():
+    """`eval/run.py --seeds-used SCENE`: which seeds each study's blocks hold there, with their role, from the files;
+    `--list`: every study with the episodes its data holds."""
+    assert run.spans([15, 16, 17, 20, 3]) == "3, 15-17, 20"
+    lines = run.seeds_used("libero_object")
+    assert lines[0].split() == ["seeds", "study", "block", "role", "tasks"]
+    rows = [ln.split() for ln in lines[1:]]
+    assert ["0-4", "centre_guide", "design_object", "design", "0-9"] in rows
+    assert ["10-14", "suites_learned_select", "selection", "run", "0-9"] in rows
+    assert [r[0] for r in rows] == sorted((r[0] for r in rows), key=lambda x: int(x.split("-")[0]))
+    assert run.seeds_used("no_such_scene") == ["no study runs a block on 'no_such_scene'"]
+    listed = {ln.split()[0]: ln.split()[1] for ln in run.listing()[1:]}
+    assert set(listed) == {f.stem for f in study_mod.STUDIES.glob("*.toml")}
+    assert listed["centre_guide_mocap"] == str(EPISODES["centre_guide_mocap"])
