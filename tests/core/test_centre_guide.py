@@ -36,9 +36,11 @@ def slack(scene, cfg=ON) -> float:
     return float(pe[CENTRE_SLACK_M])
 
 
-def _run(cfg, eef_xy, scene=CREAM_CHEESE, steps=12, close_at=None, height=0.05, lift=0.0):
-    """A hand hovering at eef_xy (m from the object's origin), `height` above it, commanding a small move toward its
-    own aim (+x); (actions out, policy action, phases). On a 4-channel layout the action is [x, y, z, gripper]."""
+def _run(cfg, eef_xy, scene=CREAM_CHEESE, steps=12, close_at=None, height=0.05, lift=0.0, heights=None):
+    """A hand hovering at eef_xy (m from the object's origin), `height` above it (or heights[t] at step t, for
+    len(heights) steps), commanding a small move toward its own aim (+x); (actions out, policy action, phases). On a
+    4-channel layout the action is [x, y, z, gripper]."""
+    steps = steps if heights is None else len(heights)
     c = Corrector(cfg, batch_size=1)
     outs, phases = [], []
     a = np.array([[0.2, 0.1, -0.3, 0, 0, 0, -1.0]])  # open (robosuite: - = open)
@@ -48,7 +50,7 @@ def _run(cfg, eef_xy, scene=CREAM_CHEESE, steps=12, close_at=None, height=0.05, 
         s = PhysState.empty(1, 7)
         s.valid[:], s.dt[:], s.episode_step[:] = 1.0, 0.05, t
         s.obj_pos[:], s.target_pos[:], s.obj_rest_z[:] = (0.0, 0.0, 0.9 + lift), (0.3, 0.0, 0.9), 0.9
-        s.eef_pos[:] = (eef_xy[0], eef_xy[1], 0.9 + lift + height)
+        s.eef_pos[:] = (eef_xy[0], eef_xy[1], 0.9 + lift + (height if heights is None else heights[t]))
         s.gripper[:] = 0.08
         s.M[:], s.J_pos[:, :, :3] = np.eye(7), np.eye(3)
         s.scene[:] = scene
@@ -107,6 +109,21 @@ def test_no_pull_once_the_policy_closes_the_hand_is_high_or_the_object_is_lifted
     for kw in ({"height": 0.2}, {"lift": 0.05}):  # above top + 9.8 cm; carried (the transport phase)
         outs, a, _ = _run(ON, (0.02, 0.0), **kw)
         np.testing.assert_array_equal(outs[:, :6], np.tile(a[:6], (len(outs), 1)))
+
+
+def test_once_a_pull_has_ended_the_hand_that_comes_back_is_left_to_the_policy_until_the_object_is_lifted():
+    """centre_guide_once: MetaWorld's bin-picking policy climbs out of the zone whenever it is held away from its own
+    aim beside the cube, and comes back down to it (docs/decisions/25-centre-guide.md). Without the flag the guide
+    pulls it away again on every return; with it, one pull per approach."""
+    heights = [0.05] * 12 + [0.3] * 3 + [0.05] * 12  # settle, pulled; out of the zone; back, settled again
+    again, a, _ = _run(ON, (0.02, 0.0), heights=heights)
+    once, _, _ = _run(ON.replace(centre_guide_once=True), (0.02, 0.0), heights=heights)
+    np.testing.assert_array_equal(once[:15], again[:15])  # the first pull is the same
+    assert (once[RIM_SETTLE_STEPS:12, 0] < 0).all()
+    assert (again[15 + RIM_SETTLE_STEPS:, 0] < 0).all()  # pulled again
+    np.testing.assert_array_equal(once[15:], np.tile(a, (12, 1)))  # left to the policy
+    with pytest.raises(ValueError, match="centre_guide_once shapes the centre guide"):
+        PhysVLAConfig(centre_guide_once=True)
 
 
 def test_it_never_pulls_on_a_rim_grasped_bowl_nor_without_a_measured_scene_nor_with_the_fixed_distances():

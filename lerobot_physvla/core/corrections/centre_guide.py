@@ -17,6 +17,10 @@ across (beyond the paper; centre_guide). centre_guide_approach runs the same ker
     z and the gripper stay the policy's; the pull ends where the policy closes, the hand leaves the zone or
     the object is lifted. Unlike the rim guide's, it goes on at the centre (a zero pull holds the hand there
     against a policy that aims beside it), so the fingers close around the object's centre.
+    once (centre_guide_once): a hand that leaves the zone, or closes, while pulled is not pulled again until the
+    object is lifted: one pull per approach, so a policy that grasps beside the object on purpose and comes
+    back to its own aim (MetaWorld's bin-picking policy, which climbs back up whenever it is held more than 2 cm
+    from an aim beside the cube) is left to it.
     pose error (pose_error_m = e): the pull aims the hand at the object's pose, so e moves the grasp by up to e;
     it pulls only while e < span / 2 - w_o (CENTRE_SLACK_M: the room an open hand has on either side of the
     object across its narrower side), and leaves the hand to the policy beyond.
@@ -35,12 +39,13 @@ from lerobot_physvla.core.phase import APPROACH, GRASP
 
 # the pose error it tolerates, m: span / 2 - w_o for an object the hand closes across, -1 (no pull) for any other
 # or with no measured scene (core/geometry.py)
-# and the fraction of the gap it commands a step (ActionLayout.step_gain)
-PARAMS = ("CENTRE_SLACK_M", "CENTRE_GAIN")
-# the hand's x, y (m) over the last RIM_SETTLE_STEPS committed steps; steps recorded so far; 1.0 while it pulls
-MEMORY = (("CENTRE_TRACK", 10), ("CENTRE_AT", 1), ("CENTRE_ON", 1))
-CENTRE_SLACK_M, CENTRE_GAIN = slots.params(__file__)
-CENTRE_TRACK, CENTRE_AT, CENTRE_ON = slots.memory(__file__)
+# the fraction of the gap it commands a step (ActionLayout.step_gain); 1.0: one pull per approach (centre_guide_once)
+PARAMS = ("CENTRE_SLACK_M", "CENTRE_GAIN", "CENTRE_ONCE")
+# the hand's x, y (m) over the last RIM_SETTLE_STEPS committed steps; steps recorded so far; 1.0 while it pulls;
+# 1.0 once a pull has ended in this approach
+MEMORY = (("CENTRE_TRACK", 10), ("CENTRE_AT", 1), ("CENTRE_ON", 1), ("CENTRE_DONE", 1))
+CENTRE_SLACK_M, CENTRE_GAIN, CENTRE_ONCE = slots.params(__file__)
+CENTRE_TRACK, CENTRE_AT, CENTRE_ON, CENTRE_DONE = slots.memory(__file__)
 POSE = "aims the hand at the object's pose: no pull once pose_error_m >= span / 2 - the object's narrower half-extent"
 NO_PULL_M = -1.0  # CENTRE_SLACK_M where the object is not known to be grasped whole
 
@@ -50,36 +55,47 @@ def centre_guide(a_raw, a_phys, idx, geo, p, mem, commit):
     """x, y commanded onto the object's origin for an open hand settled beside an object it can close across
     (the approach and grasp phases); z and the gripper untouched."""
     dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
-    on = (low_open and rho < p[RIM_REACH_M] and p[POSE_ERROR_M] < p[CENTRE_SLACK_M]
+    again = p[CENTRE_ONCE] < 0.5 or mem[CENTRE_DONE] < 0.5
+    on = (low_open and rho < p[RIM_REACH_M] and p[POSE_ERROR_M] < p[CENTRE_SLACK_M] and again
           and (mem[CENTRE_ON] > 0.5 or settled(geo, mem, CENTRE_TRACK, CENTRE_AT)))
     if on:
         for k, c in ((X, 0), (Y, 1)):
             a_phys[idx[k]] = min(max(p[CENTRE_GAIN] * (geo[OBJ + c] - geo[EEF + c]) / p[METRES_PER_UNIT], -1.0), 1.0)
     if commit:
+        if mem[CENTRE_ON] > 0.5 and not on:
+            mem[CENTRE_DONE] = 1.0
         mem[CENTRE_ON] = 1.0 if on else 0.0
 
 
 @njit(error_model="numpy")
 def centre_guide_commit(phase, geo, p, mem):
-    """The pull ends once the object is lifted (transport, place); the hand's x, y are recorded on every committed
-    step for the settle test."""
+    """The pull ends once the object is lifted (transport, place), which begins a new approach; the hand's x, y are
+    recorded on every committed step for the settle test."""
     if phase != APPROACH and phase != GRASP:
         mem[CENTRE_ON] = 0.0
+        mem[CENTRE_DONE] = 0.0
     track_hand(geo, mem, CENTRE_TRACK, CENTRE_AT)
 
 
 CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                         values={"CENTRE_SLACK_M": lambda c, lay: NO_PULL_M,
-                                "CENTRE_GAIN": lambda c, lay: lay.step_gain},
+                                "CENTRE_GAIN": lambda c, lay: lay.step_gain,
+                                "CENTRE_ONCE": lambda c, lay: float(c.centre_guide_once)},
                         on=lambda c: c.centre_guide, commit=centre_guide_commit,
                         fields=(Field("centre_guide", bool, False, False, "an open hand settled low over an object "
                                       "it can close across is pulled onto the object's centre until it closes "
-                                      "(geometry=scene; with the fixed distances it never pulls)"),),
+                                      "(geometry=scene; with the fixed distances it never pulls)"),
+                                Field("centre_guide_once", bool, False, False, "the centre guide pulls once per "
+                                      "approach: a hand that leaves the zone or closes while pulled is left to the "
+                                      "policy until the object is lifted"),),
                         check=lambda c: _check(c),
                         pose=POSE)
 
 
 def _check(c) -> None:
+    if c.centre_guide_once and not c.centre_guide:
+        raise ValueError("physvla: centre_guide_once shapes the centre guide's pull: set centre_guide=true with it, "
+                         "or leave it off")
     if c.centre_guide and c.action_layout.absolute:
         raise ValueError("physvla: centre_guide commands a delta layout's x, y; this layout's positions are "
                          "absolute targets: leave centre_guide off")
