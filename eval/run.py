@@ -52,6 +52,17 @@ def needed(study: Study, roles=ROLES, only: str | None = None) -> list[tuple]:
     return list(dict.fromkeys(cells))
 
 
+def only_blocks(study: Study, cells: list[tuple], blocks: str | None) -> list[tuple]:
+    """The cells of the blocks named (comma-separated), or all of them; an unknown name is an error."""
+    if not blocks:
+        return cells
+    names = [b.strip() for b in blocks.split(",") if b.strip()]
+    unknown = [b for b in names if b not in study.blocks]
+    if unknown:
+        raise SystemExit(f"eval: study {study.name} has no block(s) {unknown}; its blocks: {', '.join(study.blocks)}")
+    return [c for c in cells if c[0].name in names]
+
+
 def missing(study: Study, store: Store, cells) -> dict[tuple, list[int]]:
     """The episodes of `cells` the store does not hold: {(backbone, configuration, scene, task): [seeds]}."""
     todo = defaultdict(list)
@@ -94,13 +105,13 @@ def missing_units(study: Study, todo: dict[tuple, list[int]], per_unit: int, che
 
 
 def run(study: Study, roles=ROLES, only=None, workers=None, backend="process", per_unit=5,
-        checkpoints="outputs/train", dry_run=False) -> int:
-    """Run what the study lacks; returns the number of new episodes."""
+        checkpoints="outputs/train", dry_run=False, blocks: str | None = None) -> int:
+    """Run what the study lacks (of the blocks named, if any); returns the number of new episodes."""
     store = Store(study.data[0])
     for other in study.data[1:]:  # episodes another study's data already holds are not run again
         store.add(Store(other).rows)
         store.meta["backbones"].update(Store(other).meta["backbones"])
-    todo = missing(study, store, needed(study, roles, only))
+    todo = missing(study, store, only_blocks(study, needed(study, roles, only), blocks))
     n = sum(len(v) for v in todo.values())
     if dry_run:
         print(f"{study.name}: {len(store.rows)} episodes on disk; {n} to run")
@@ -200,6 +211,8 @@ def main() -> None:
     ap.add_argument("study", nargs="?", help="a study file, or a name under eval/studies/")
     ap.add_argument("--role", choices=(*ROLES, "all"), default="all", help="which blocks of the comparisons to run")
     ap.add_argument("--compare", default=None, help="only the comparisons whose name contains this")
+    ap.add_argument("--blocks", default=None,
+                    help="only these blocks (comma-separated), e.g. the suite whose backbones have trained")
     ap.add_argument("--workers", type=int, default=None, help="local processes (default: every core)")
     ap.add_argument("--backend", choices=harness.BACKENDS, default="process",
                     help="process pool, or ray (joins $RAY_ADDRESS or starts a local Ray)")
@@ -227,7 +240,8 @@ def main() -> None:
     study = Study(find(args.study))
     if not args.report_only:
         roles = ROLES if args.role == "all" else (args.role,)
-        run(study, roles, args.compare, args.workers, args.backend, args.per_unit, args.checkpoints, args.dry_run)
+        run(study, roles, args.compare, args.workers, args.backend, args.per_unit, args.checkpoints, args.dry_run,
+            args.blocks)
     if not args.dry_run:
         path = write_report(study)
         print(path.read_text())

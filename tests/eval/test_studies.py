@@ -280,3 +280,15 @@ def test_seeds_used_and_list_say_what_the_study_files_hold():
     listed = {ln.split()[0]: ln.split()[1] for ln in run.listing()[1:]}
     assert set(listed) == {f.stem for f in study_mod.STUDIES.glob("*.toml")}
     assert listed["centre_guide_mocap"] == str(EPISODES["centre_guide_mocap"])
+
+
+def test_blocks_restricts_a_run_to_the_blocks_named():
+    """`eval/run.py STUDY --blocks goal`: only that block's cells (a suite whose backbones have trained before the
+    other's); a name the study lacks is an error that lists its blocks."""
+    study = Study(study_mod.find("learned_goal_ten_select"))
+    cells = run.needed(study)
+    goal = run.only_blocks(study, cells, "goal")
+    assert goal and {c[0].name for c in goal} == {"goal"} and len(goal) < len(cells)
+    assert run.only_blocks(study, cells, None) == cells
+    with pytest.raises(SystemExit, match="no block.*its blocks: goal, ten"):
+        run.only_blocks(study, cells, "goal,nope")
