@@ -219,6 +219,10 @@ SUITE_CHOICE: dict[str, tuple[str, int]] = {
     "object_act_single": ("libero_object/act_single", 20000),
     "object_act_chunk": ("libero_object/act_chunk", 9600),
     "object_act_chunk_weak": ("libero_object/act_chunk", 2400),
+    # LIBERO-Goal (eval/results/learned_goal_ten_select, init states 35-39, n = 30): act_chunk's checkpoints 17, 30, 0,
+    # 27, 10 % (none in the strong band: the final one is kept, outside the band)
+    "goal_act_chunk": ("libero_goal/act_chunk", 12000),
+    "goal_act_chunk_weak": ("libero_goal/act_chunk", 4800),
 }
 
 
