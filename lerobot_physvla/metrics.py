@@ -84,4 +84,4 @@ def wilson_interval(successes: int, n: int, z: float = 1.96) -> tuple[float, flo
     den = 1 + z * z / n
     centre = (p + z * z / (2 * n)) / den
     half = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return (float(centre - half), float(centre + half))
+    return (float(max(centre - half, 0.0)), float(min(centre + half, 1.0)))  # rounding leaves -1e-17 at p = 0

@@ -10,6 +10,10 @@ def test_precision_efficiency_and_wilson():
     assert metrics.efficiency(True, 70, 280) == pytest.approx(0.75) and metrics.efficiency(False, 70, 280) == 0
     lo, hi = metrics.wilson_interval(5, 10)
     assert lo == pytest.approx(0.2366, abs=1e-3) and hi == pytest.approx(0.7634, abs=1e-3)
+    for k in range(31):  # inside [0, 1] at the ends too (0 of 30 printed "[-0%, 11%]" before)
+        lo, hi = metrics.wilson_interval(k, 30)
+        assert 0.0 <= lo <= k / 30 <= hi <= 1.0
+    assert metrics.wilson_interval(0, 30)[0] == 0.0 and metrics.wilson_interval(30, 30)[1] == 1.0
 
 
 def test_smooth_motion_scores_better_than_jittery_motion():
