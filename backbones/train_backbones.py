@@ -223,6 +223,9 @@ SUITE_CHOICE: dict[str, tuple[str, int]] = {
     # 27, 10 % (none in the strong band: the final one is kept, outside the band)
     "goal_act_chunk": ("libero_goal/act_chunk", 12000),
     "goal_act_chunk_weak": ("libero_goal/act_chunk", 4800),
+    # LIBERO-10 (the same study and block): act_chunk's 7, 33, 23, 27, 17 % (none in the strong band: the final one)
+    "ten_act_chunk": ("libero_10/act_chunk", 12000),
+    "ten_act_chunk_weak": ("libero_10/act_chunk", 4800),
 }
 
 
