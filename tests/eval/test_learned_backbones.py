@@ -175,6 +175,29 @@ def test_record_train_and_run_a_learned_backbone(tmp_path, monkeypatch):
     assert policy.policy.config.n_action_steps == 10  # chunked: the 3 actions come from one chunk
 
 
+def replays_to_success(data, cfg_env, vec, seed: int) -> bool:
+    """Replay a recorded episode's actions in a one-env vector env through lerobot-eval's observation path
+    (preprocess_observation + the env's preprocessor), asserting at every frame the state and environment_state
+    the dataset holds; whether the replay ends in success."""
+    from lerobot.envs.utils import preprocess_observation
+
+    env_pre, _ = cfg_env.get_env_processors()
+    try:
+        obs, _ = vec.reset(seed=[seed])
+        success = False
+        for t in range(data.num_frames):
+            seen = env_pre(preprocess_observation(obs))
+            frame = data[t]
+            for key in ("observation.state", "observation.environment_state"):
+                np.testing.assert_allclose(seen[key][0].numpy(), frame[key].numpy(), atol=1e-4,
+                                           err_msg=f"{key} at frame {t}")
+            obs, _, _, _, info = vec.step(frame["action"].numpy()[None].astype(np.float64))
+            success = bool(info["is_success"][0]) if "is_success" in info else success
+        return success
+    finally:
+        vec.close()
+
+
 @pytest.mark.slow
 def test_recorded_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
     """The training data and lerobot-eval agree on what the policy sees: a recorded expert episode
@@ -188,7 +211,6 @@ def test_recorded_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
     assert rec.returncode == 0, rec.stderr[-2000:]
 
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
-    from lerobot.envs.utils import preprocess_observation
 
     from lerobot_physvla.envs.libero_physvla import LiberoPhysVLAEnvConfig
 
@@ -196,21 +218,7 @@ def test_recorded_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
     assert data.num_episodes == 1
     cfg_env = LiberoPhysVLAEnvConfig(task="libero_spatial", task_ids=[0], cameras=False)
     vec = cfg_env.create_envs(n_envs=1)["libero_spatial"][0]  # its first sub-env starts at init state 0
-    env_pre, _ = cfg_env.get_env_processors()
-    try:
-        obs, _ = vec.reset(seed=[0])
-        success = False
-        for t in range(data.num_frames):
-            seen = env_pre(preprocess_observation(obs))
-            frame = data[t]
-            for key in ("observation.state", "observation.environment_state"):
-                np.testing.assert_allclose(seen[key][0].numpy(), frame[key].numpy(), atol=1e-4,
-                                           err_msg=f"{key} at frame {t}")
-            obs, _, _, _, info = vec.step(frame["action"].numpy()[None].astype(np.float64))
-            success = bool(info["is_success"][0]) if "is_success" in info else success
-        assert success  # the replayed episode ends where the recorded one did: in success
-    finally:
-        vec.close()
+    assert replays_to_success(data, cfg_env, vec, seed=0)  # the replayed episode ends where the recorded one did
 
 
 def test_the_committed_checkpoints_are_the_weights_the_published_table_ran():
@@ -391,28 +399,13 @@ def test_recorded_metaworld_observations_are_what_lerobot_eval_feeds_the_policy(
     assert info["features"]["observation.state"]["shape"] == [4] and info["features"]["action"]["shape"] == [4]
 
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
-    from lerobot.envs.utils import preprocess_observation
 
     from lerobot_physvla.envs.metaworld_physvla import MetaworldPhysVLAEnvConfig
 
     data = LeRobotDataset("local/alignment_mw", root=ds)
     cfg_env = MetaworldPhysVLAEnvConfig(task="pick-place-v3", cameras=False)
     vec = cfg_env.create_envs(n_envs=1)["pick-place-v3"][0]
-    env_pre, _ = cfg_env.get_env_processors()
-    try:
-        obs, _ = vec.reset(seed=[100])
-        success = False
-        for t in range(data.num_frames):
-            seen = env_pre(preprocess_observation(obs))
-            frame = data[t]
-            for key in ("observation.state", "observation.environment_state"):
-                np.testing.assert_allclose(seen[key][0].numpy(), frame[key].numpy(), atol=1e-4,
-                                           err_msg=f"{key} at frame {t}")
-            obs, _, _, _, info = vec.step(frame["action"].numpy()[None].astype(np.float64))
-            success = bool(info["is_success"][0]) if "is_success" in info else success
-        assert success
-    finally:
-        vec.close()
+    assert replays_to_success(data, cfg_env, vec, seed=100)
     refused = subprocess.run([sys.executable, str(ROOT / "backbones/record_dataset.py"), "--suite", "metaworld",
                               "--camera-size", "64", "--out", str(tmp_path / "no")], capture_output=True, text=True,
                              cwd=ROOT)
