@@ -57,7 +57,8 @@ def test_so101_pick_place_eval_is_corrected_in_the_so101_layout_at_the_envs_acti
     # the env's layout at its action_scale, no --physvla.layout given; Branch B's weighting with it
     assert diag["physvla_config"]["layout"] == {"dim": 4, "pos": [0, 1, 2], "rot": [], "gripper": 3,
                                                 "metres_per_unit": 0.025, "gripper_open": 1.0, "low": -1.0,
-                                                "high": 1.0, "absolute": False, "gripper_closed": 0.0}
+                                                "high": 1.0, "absolute": False, "gripper_closed": 0.0,
+                                                "step_gain": 1.0}
     assert diag["physvla_config"]["weighting"] == "task_space"
     assert diag["episodes"] == 1 and diag["steps"] == 8 and diag["passthrough"] == {}
     episodes = [json.loads(line) for line in (out / "physvla_episodes.jsonl").read_text().splitlines()]
