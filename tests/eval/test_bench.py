@@ -1,6 +1,8 @@
 import sys
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "eval" / "bench"))
 import training as bench_training  # noqa: E402
 
@@ -13,3 +15,39 @@ def test_log_periods_reads_lerobot_train_log_lines_through_progress_bars():
             "epch:0.25 loss:0.223 grdn:2.880 lr:3.0e-04 updt_s:0.025 data_s:0.055 smp/s:398 l1_loss:0.223\n")
     assert bench_training.log_periods(text) == [(0.172, 0.111), (0.025, 0.055)]
     assert bench_training.log_periods("Training: 100%| 8000/8000\nEnd of training\n") == []
+
+
+def _path(*points, step=0.01):
+    """Rows of xyz through `points`, at most `step` metres apart (a hand moves about a centimetre a step)."""
+    rows = [np.asarray(points[0], float)]
+    for a, b in zip(points, points[1:]):
+        n = max(int(np.ceil(np.linalg.norm(np.subtract(b, a)) / step)), 1)
+        rows += [np.asarray(a, float) + (np.subtract(b, a)) * k / n for k in range(1, n + 1)]
+    return np.array(rows)
+
+
+def _trace(hand, obj, target):
+    """Rows (hand xyz, object xyz, target xyz) per step: a fixed target beside the hand's and object's paths."""
+    return np.concatenate([hand, obj, np.tile(np.asarray(target, float), (len(hand), 1))], axis=1)
+
+
+def test_failure_modes_sorts_an_episode_by_what_its_object_did():
+    import failure_modes as fm
+
+    tgt, table = (0.3, 0.0, 0.9), (0.0, 0.0, 0.9)
+    rest = _path(table, table)
+    assert fm.outcome(True, _trace(_path((0, 0.3, 1.2), (0, 0.3, 1.2)), rest, tgt)) == "success"  # its own success wins
+    assert fm.outcome(False, _trace(_path((0, 0.3, 1.2), (0, 0.3, 1.2)), rest, tgt)) == "never reached"
+    assert fm.outcome(False, _trace(_path((0, 0.01, 0.92), (0, 0.01, 0.92)), rest, tgt)) == "reached, not lifted"
+    dropped = _path(table, (0, 0, 0.95), (0.1, 0, 0.95), (0.1, 0, 0.9))
+    assert fm.outcome(False, _trace(dropped, dropped, tgt)) == "lifted, dropped"
+    held = _path(table, (0, 0, 0.95), (0.2, 0, 0.97))
+    assert fm.outcome(False, _trace(held, held, tgt)) == "lifted, held at the end"
+    on_target = _path(table, (0, 0, 0.95), (0.28, 0, 0.95), (0.28, 0, 0.9))
+    assert fm.outcome(False, _trace(on_target, on_target, tgt)) == "on target, no success"
+    # a two-object goal: the first object carried off, then the corrector tracks a second one (a jump of its tracked
+    # position) that the hand never reaches: the episode is judged by the second object
+    first = _path(table, (0, 0, 0.95), (0.3, 0, 0.95))
+    obj = np.concatenate([first, _path((0.5, 0.5, 0.9), (0.5, 0.5, 0.9))])
+    hand = np.concatenate([first, _path((0.3, 0, 0.95), (0.3, 0, 0.95))])
+    assert fm.outcome(False, _trace(hand, obj, tgt)) == "never reached"

@@ -1,0 +1,184 @@
+"""Why episodes fail: a study's cells run again with the scene's state traced, each episode sorted into an outcome.
+
+    .venv/bin/python eval/bench/failure_modes.py learned_goal_ten --block goal \
+        --backbone goal_act_chunk_weak --configs "baseline,shipped default" [--tasks 1,6,8] [--workers 2]
+
+A study's report says how many failures a corrector turned into successes; this says what the failures were. Every
+episode of the cells named (the block's tasks and seeds, so the pairs are the study's) runs again through
+eval/harness.py's compute_unit, unchanged, on a scene whose reads are recorded, and is sorted by what the task's
+movable object did (on a two-object goal, the object of the sub-goal the corrector followed last):
+
+    success                  the task's own success
+    never reached            the hand never came within REACH_M of the object
+    reached, not lifted      the object never rose LIFT_M above where it rested
+    lifted, dropped          lifted, and at the end back down, farther than NEAR_M (xy) from its target
+    lifted, held at the end  lifted and still LIFT_M above its rest at the horizon
+    on target, no success    lifted, and at the end within NEAR_M (xy) of its target, but the goal is not met
+
+It prints the outcomes per configuration and per task, the paired transitions (the first configuration against each
+other), and how many replayed episodes agree with the study's stored success (a replay that disagrees means the run
+is not the study's: other weights, code or seeds).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "eval"))
+import harness  # noqa: E402
+from run import missing_units  # noqa: E402
+from store import Store  # noqa: E402
+from study import Study, find  # noqa: E402
+
+from lerobot_physvla.replay.record import parse_range  # noqa: E402
+
+REACH_M = 0.05  # hand-to-object distance (3-D, m) that counts as having reached it
+LIFT_M = 0.02  # rise above the object's rest height (m) that counts as lifted
+NEAR_M = 0.05  # object-to-target distance in the plane (m) that counts as on target
+SWITCH_M = 0.05  # a one-step jump of the tracked object's position (m): the corrector moved on to another object
+OUTCOMES = ("success", "never reached", "reached, not lifted", "lifted, dropped", "lifted, held at the end",
+            "on target, no success")
+
+
+class TracedScene:
+    """A scene whose reads are recorded: per episode, per step (hand xyz, object xyz, target xyz), metres.
+    Everything else is the wrapped scene's."""
+
+    def __init__(self, scene):
+        self._scene = scene
+        self.episodes: list[list[np.ndarray]] = []
+
+    def __getattr__(self, name):
+        return getattr(self._scene, name)
+
+    def reset(self, seed: int):
+        self.episodes.append([])
+        return self._scene.reset(seed)
+
+    def read(self):
+        st = self._scene.read()
+        self.episodes[-1].append(np.concatenate([st.eef_pos[0], st.obj_pos[0], st.target_pos[0]]).astype(float))
+        return st
+
+
+def outcome(success: bool, trace: np.ndarray) -> str:
+    """One episode's outcome (OUTCOMES) from its trace, rows (hand xyz, object xyz, target xyz) per step."""
+    if success:
+        return "success"
+    hand, obj, target = trace[:, 0:3], trace[:, 3:6], trace[:, 6:9]
+    jumps = np.flatnonzero(np.linalg.norm(np.diff(obj, axis=0), axis=1) > SWITCH_M) + 1
+    start = int(jumps[-1]) if len(jumps) else 0  # the last tracked object, from where it was first seen at rest
+    hand, obj, target = hand[start:], obj[start:], target[start:]
+    if not np.isfinite(obj).all() or len(obj) == 0:
+        return "never reached"
+    if np.linalg.norm(hand - obj, axis=1).min() > REACH_M:
+        return "never reached"
+    rise = obj[:, 2] - obj[0, 2]
+    if rise.max() < LIFT_M:
+        return "reached, not lifted"
+    if rise[-1] >= LIFT_M:
+        return "lifted, held at the end"
+    if np.linalg.norm(obj[-1, :2] - target[-1, :2]) <= NEAR_M:
+        return "on target, no success"
+    return "lifted, dropped"
+
+
+def trace_unit(unit: harness.Unit) -> list[tuple[dict, str]]:
+    """Run one harness unit (in a worker) on traced scenes; (record, outcome) per episode."""
+    from lerobot_physvla.sim.scenes import cached_scene
+
+    traced: dict[str, TracedScene] = {}
+
+    def scene(name: str) -> TracedScene:
+        if name not in traced:
+            traced[name] = TracedScene(cached_scene(name))
+        return traced[name]
+
+    harness._scene = scene  # compute_unit builds its scene through this: the rest of it runs as in a study
+    payload = harness.compute_unit(unit)
+    episodes = traced[unit.scene_name].episodes[-unit.episodes:]
+    return [(rec, outcome(rec["success"], np.asarray(tr))) for rec, tr in zip(payload["records"], episodes)]
+
+
+def table(rows: list[list[str]]) -> str:
+    head, *body = rows
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in body])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("study", help="a study file, or a name under eval/studies/")
+    ap.add_argument("--block", required=True, help="one of the study's blocks")
+    ap.add_argument("--backbone", required=True, help="one backbone of that block")
+    ap.add_argument("--configs", required=True, help="comma-separated configurations; the first is the reference")
+    ap.add_argument("--tasks", default=None, help="a subset of the block's tasks, e.g. 1,6,8")
+    ap.add_argument("--seeds", default=None, help="a subset of the block's seeds, e.g. 5-7")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--checkpoints", default="outputs/train", help="where backbones/train_backbones.py wrote")
+    args = ap.parse_args()
+
+    study = Study(find(args.study))
+    if args.block not in study.blocks:
+        raise SystemExit(f"failure_modes: {study.name} has no block {args.block!r}; its blocks: {', '.join(study.blocks)}")
+    block = study.blocks[args.block]
+    if block.scene == "so101_pick_place":
+        raise SystemExit("failure_modes: the SO-101 robot scene runs through lerobot's robot processor, not a traced "
+                         "scene; pick a LIBERO or MetaWorld block")
+    if args.backbone not in block.backbones:
+        raise SystemExit(f"failure_modes: block {args.block} has no backbone {args.backbone!r}; its backbones: "
+                         f"{', '.join(block.backbones)}")
+    configs = [c.strip() for c in args.configs.split(",") if c.strip()]
+    unknown = [c for c in configs if c not in study.config_specs]
+    if unknown:
+        raise SystemExit(f"failure_modes: {study.name} has no configuration(s) {unknown}; its configurations: "
+                         f"{', '.join(study.config_specs)}")
+    tasks = [t for t in block.tasks if args.tasks is None or t in parse_range(args.tasks)]
+    seeds = [s for s in block.seeds if args.seeds is None or s in parse_range(args.seeds)]
+    if not tasks or not seeds:
+        raise SystemExit(f"failure_modes: no task or seed left; the block's tasks {list(block.tasks)}, seeds "
+                         f"{block.seeds[0]}-{block.seeds[-1]}")
+
+    todo = {(args.backbone, c, block.scene, t): seeds for c in configs for t in tasks}
+    units = missing_units(study, todo, 5, args.checkpoints)
+    results: list[tuple[str, dict, str]] = []
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        futures = {pool.submit(trace_unit, u): u for u in units}
+        for f in tqdm(futures, desc="units", unit="unit"):
+            results += [(futures[f].config_name, rec, out) for rec, out in f.result()]
+
+    names = {study.config_hash(c, block.scene): c for c in configs}
+    stored = {(r["backbone"], r["config"], r["scene"], r["task_id"], r["seed"]): r["success"]
+              for d in study.data for r in Store(d).rows}
+    agree = [stored[k] == rec["success"] for h, rec, _ in results
+             if (k := (args.backbone, h, block.scene, rec["task_id"], rec["seed"])) in stored]
+    by = {(names[h], rec["task_id"], rec["seed"]): out for h, rec, out in results}
+
+    print(f"\n{study.name}, block {args.block} ({block.scene}, tasks {tasks}, seeds {seeds[0]}-{seeds[-1]}), "
+          f"{args.backbone}: {len(results)} episodes")
+    print(f"success as the study stored it: {sum(agree)} of {len(agree)} replayed episodes agree"
+          + ("" if len(agree) else " (the study holds none of them)"))
+    print("\n" + table([["outcome", *configs]] + [[o, *(str(sum(by[(c, t, s)] == o for t in tasks for s in seeds))
+                                                         for c in configs)] for o in OUTCOMES]))
+    print("\nper task, one digit a seed (" + ", ".join(f"{k} {o}" for k, o in enumerate(OUTCOMES)) + "):")
+    code = {o: str(k) for k, o in enumerate(OUTCOMES)}
+    for c in configs:
+        print(f"  {c}: " + "  ".join(f"t{t} " + "".join(code[by[(c, t, s)]] for s in seeds) for t in tasks))
+    ref = configs[0]
+    for c in configs[1:]:
+        moves = Counter((by[(ref, t, s)], by[(c, t, s)]) for t in tasks for s in seeds)
+        print(f"\n{ref} -> {c}, the pairs that changed:")
+        changed = [[a, b, str(n)] for (a, b), n in sorted(moves.items()) if a != b]
+        print(table([[ref, c, "pairs"]] + changed) if changed else "  none")
+
+
+if __name__ == "__main__":
+    main()
