@@ -199,7 +199,9 @@ MID_CHOICE: dict[str, tuple[str, int]] = {"act_single_mid": (f"{CPU_DRAW_DIR}/ac
 # 0.1 and 0.3, successful episodes only) into outputs/train/<suite>/<recipe>:
 #     .venv/bin/python backbones/train_backbones.py act_single --suite libero_object
 # LIBERO-Goal and LIBERO-10 (whose init states 5-19 earlier studies hold) record 20-34 instead and select on
-# 35-39, act_chunk only so far (eval/studies/learned_goal_ten_select.toml).
+# 35-39, act_chunk only so far (eval/studies/learned_goal_ten_select.toml). MetaWorld's ACTs (`mw_`) learn from
+# its own scripted policies (`record_dataset.py --suite metaworld --tasks 0-5 --seeds 100-139`) and select on
+# seeds 140-149 (eval/studies/learned_metaworld_select.toml), act_chunk only.
 # Which checkpoints become backbones, written before any of them trained: every checkpoint of a run
 # (steps 1/5 .. 5/5) runs uncorrected on the suite's selection block (LIBERO-Object init states 10-14,
 # eval/studies/suites_learned_select.toml; Goal and 10 35-39), then (`choose_suite`)
@@ -208,7 +210,7 @@ MID_CHOICE: dict[str, tuple[str, int]] = {"act_single_mid": (f"{CPU_DRAW_DIR}/ac
 #  - weaker sibling, `<short>_<recipe>_weak`: of the other checkpoints, the one in WEAK_BAND closest to
 #    WEAK_TARGET, ties to the earlier step; if none lies in the band the run has no weaker sibling
 #    (reported, not searched further).
-SUITE_SHORT = {"libero_object": "object", "libero_goal": "goal", "libero_10": "ten"}
+SUITE_SHORT = {"libero_object": "object", "libero_goal": "goal", "libero_10": "ten", "metaworld": "mw"}
 SUITE_RECIPES = ("act_single", "act_chunk")
 STRONG_BAND, WEAK_BAND, WEAK_TARGET = (0.60, 0.95), (0.20, 0.50), 0.35
 # "<short>_<recipe>[_weak]" -> (its run's directory under the training root, step), as the selection
@@ -245,9 +247,8 @@ def choose_suite(success: dict[int, float]) -> tuple[int, int | None]:
 
 def suite_paths(suite: str) -> tuple[str, str]:
     """(dataset root, training root) of a suite's ACTs (MetaWorld's: `record_dataset.py --suite metaworld`)."""
-    if suite not in SUITE_SHORT and suite not in ("libero_spatial", "metaworld"):
-        raise SystemExit(f"train_backbones: unknown suite {suite!r}; one of libero_spatial, {', '.join(SUITE_SHORT)}, "
-                         "metaworld")
+    if suite not in SUITE_SHORT and suite != "libero_spatial":
+        raise SystemExit(f"train_backbones: unknown suite {suite!r}; one of libero_spatial, {', '.join(SUITE_SHORT)}")
     if suite == "libero_spatial":
         return DATASET, "outputs/train"
     return f"outputs/datasets/physvla_{suite}", f"outputs/train/{suite}"
