@@ -182,13 +182,13 @@ def readme_table() -> list[str]:
 
 
 SUITES = {"object": "LIBERO-Object", "goal": "LIBERO-Goal", "ten": "LIBERO-10",
-          "image": "LIBERO-Spatial, agentview camera"}
+          "image": "LIBERO-Spatial, agentview camera", "metaworld": "MetaWorld"}
 
 
-# the scripted teacher's study, the ACTs distilled from it, the image-input ACT (eval/studies/image_act.toml), and the
+# the scripted teacher's study, the ACTs distilled from it, the image-input ACT (eval/studies/image_act.toml), the
 # centre guide's confirmation blocks (eval/studies/centre_guide.toml: the option `centre_guide` beside the shipped
-# default, docs/decisions/25-centre-guide.md)
-SUITE_STUDIES = ("suites", "suites_learned", "learned_goal_ten", "image_act", "centre_guide")
+# default, docs/decisions/25-centre-guide.md), and the ACTs distilled from MetaWorld's own scripted policies
+SUITE_STUDIES = ("suites", "suites_learned", "learned_goal_ten", "image_act", "centre_guide", "learned_metaworld")
 BEFORE, NOW = "shipped default", "default + centre guide"
 
 
@@ -201,8 +201,8 @@ def _vs_baseline(rows: list[dict], base: list[dict]) -> str:
 
 def suites_table() -> list[str]:
     """Baseline, the shipped default (as frozen at 519c8932 for the pre-registered test) and the shipped default with
-    `centre_guide=true` on the other LIBERO suites (eval/studies/suites.toml, suites_learned.toml,
-    learned_goal_ten.toml, image_act.toml, centre_guide.toml): success, and the paired difference against baseline [95 % CI]; "-" where a configuration did
+    `centre_guide=true` on the other LIBERO suites and with MetaWorld's ACTs (eval/studies/suites.toml,
+    suites_learned.toml, learned_goal_ten.toml, image_act.toml, centre_guide.toml, learned_metaworld.toml): success, and the paired difference against baseline [95 % CI]; "-" where a configuration did
     not run on a block."""
     lines = ["| suite (tasks, init states) | policy | baseline | shipped default | with `centre_guide=true` |",
              "|---|---|---|---|---|"]
