@@ -23,6 +23,7 @@ is not the study's: other weights, code or seeds).
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
@@ -124,6 +125,7 @@ def main() -> None:
     ap.add_argument("--seeds", default=None, help="a subset of the block's seeds, e.g. 5-7")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--checkpoints", default="outputs/train", help="where backbones/train_backbones.py wrote")
+    ap.add_argument("--out", default=None, help="also write the report here (markdown, its command at the top)")
     args = ap.parse_args()
 
     study = Study(find(args.study))
@@ -162,23 +164,28 @@ def main() -> None:
              if (k := (args.backbone, h, block.scene, rec["task_id"], rec["seed"])) in stored]
     by = {(names[h], rec["task_id"], rec["seed"]): out for h, rec, out in results}
 
-    print(f"\n{study.name}, block {args.block} ({block.scene}, tasks {tasks}, seeds {seeds[0]}-{seeds[-1]}), "
-          f"{args.backbone}: {len(results)} episodes")
-    print(f"success as the study stored it: {sum(agree)} of {len(agree)} replayed episodes agree"
-          + ("" if len(agree) else " (the study holds none of them)"))
-    print("\n" + table([["outcome", *configs]] + [[o, *(str(sum(by[(c, t, s)] == o for t in tasks for s in seeds))
-                                                         for c in configs)] for o in OUTCOMES]))
-    print("\nper task, one digit a seed (" + ", ".join(f"{k} {o}" for k, o in enumerate(OUTCOMES)) + "):")
+    lines = [f"{study.name}, block {args.block} ({block.scene}, tasks {tasks}, seeds {seeds[0]}-{seeds[-1]}), "
+             f"{args.backbone}: {len(results)} episodes",
+             f"success as the study stored it: {sum(agree)} of {len(agree)} replayed episodes agree"
+             + ("" if len(agree) else " (the study holds none of them)"), "",
+             table([["outcome", *configs]] + [[o, *(str(sum(by[(c, t, s)] == o for t in tasks for s in seeds))
+                                                  for c in configs)] for o in OUTCOMES]), "",
+             "per task, one digit a seed (" + ", ".join(f"{k} {o}" for k, o in enumerate(OUTCOMES)) + "):"]
     code = {o: str(k) for k, o in enumerate(OUTCOMES)}
     for c in configs:
-        print(f"  {c}: " + "  ".join(f"t{t} " + "".join(code[by[(c, t, s)]] for s in seeds) for t in tasks))
+        lines.append(f"  {c}: " + "  ".join(f"t{t} " + "".join(code[by[(c, t, s)]] for s in seeds) for t in tasks))
     ref = configs[0]
     for c in configs[1:]:
         moves = Counter((by[(ref, t, s)], by[(c, t, s)]) for t in tasks for s in seeds)
-        print(f"\n{ref} -> {c}, the pairs that changed:")
         changed = [[a, b, str(n)] for (a, b), n in sorted(moves.items()) if a != b]
-        print(table([[ref, c, "pairs"]] + changed) if changed else "  none")
-
+        lines += ["", f"{ref} -> {c}, the pairs that changed:", table([[ref, c, "pairs"]] + changed) if changed else "  none"]
+    text = "\n".join(lines)
+    print("\n" + text)
+    if args.out:
+        made_by = shlex.join([".venv/bin/python", "eval/bench/failure_modes.py", *sys.argv[1:]])
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(f"Made by: `{made_by}`\n\n```\n{text}\n```\n")
+        print(f"wrote {args.out}")
 
 if __name__ == "__main__":
     main()
