@@ -228,6 +228,10 @@ SUITE_CHOICE: dict[str, tuple[str, int]] = {
     # LIBERO-10 (the same study and block): act_chunk's 7, 33, 23, 27, 17 % (none in the strong band: the final one)
     "ten_act_chunk": ("libero_10/act_chunk", 12000),
     "ten_act_chunk_weak": ("libero_10/act_chunk", 4800),
+    # MetaWorld (eval/results/learned_metaworld_select, seeds 140-149, n = 60): act_chunk's 30, 47, 52, 30, 70 % (the
+    # final one in the strong band; of the two at 30 %, equally near 35 %, the earlier)
+    "mw_act_chunk": ("metaworld/act_chunk", 12000),
+    "mw_act_chunk_weak": ("metaworld/act_chunk", 2400),
 }
 
 

@@ -345,25 +345,26 @@ SELECTION = {"libero_object": ("suites_learned_select", 50), "libero_goal": ("le
 def test_the_kept_suite_acts_are_the_ones_the_rule_chose_on_their_selection_block():
     """SUITE_CHOICE (which checkpoints are each suite's ACT backbones) must be what choose_suite gives on the
     uncorrected episodes its selection study recorded (every checkpoint; LIBERO-Object eval/results/
-    suites_learned_select, n = 50; LIBERO-Goal and -10 eval/results/learned_goal_ten_select, n = 30), not a hand
-    pick; and each committed copy holds the weights those episodes ran."""
+    suites_learned_select, n = 50; LIBERO-Goal and -10 eval/results/learned_goal_ten_select, n = 30; MetaWorld
+    eval/results/learned_metaworld_select, n = 60), not a hand pick; and each committed copy holds the weights
+    those episodes ran."""
     import hashlib
 
-    from store import Store, config_hash
+    from store import Store
+    from study import Study, find
 
-    from lerobot_physvla.core.config import PhysVLAConfig
-
-    uncorrected = config_hash(PhysVLAConfig.paper(mode="baseline").to_dict())
     checked = 0
     assert set(SELECTION) == set(train_backbones.SUITE_SHORT)
     for suite, short in train_backbones.SUITE_SHORT.items():
         study, n = SELECTION[suite]
+        selection = Study(find(study))  # its `baseline`, in each block's scene (MetaWorld's has its own layout)
+        uncorrected = {selection.config_hash("baseline", bl.scene) for bl in selection.blocks.values()}
         data = Store(ROOT / "eval/results" / study)
         for recipe in train_backbones.SUITE_RECIPES:
             rate, sha = {}, {}
             for r in data.rows:
                 name, _, step = r["backbone"].partition("@")
-                if r["config"] == uncorrected and name == f"{short}_{recipe}":
+                if r["config"] in uncorrected and name == f"{short}_{recipe}":
                     rate.setdefault(int(step), []).append(r["success"])
                     sha[int(step)] = data.meta["backbones"][r["backbone"]]["policy_sha256"]
             if not rate:  # this suite's ACTs are not trained yet: no backbone of theirs may be named
