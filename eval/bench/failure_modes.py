@@ -92,8 +92,13 @@ def outcome(success: bool, trace: np.ndarray) -> str:
     return "lifted, dropped"
 
 
-def trace_unit(unit: harness.Unit) -> list[tuple[dict, str]]:
-    """Run one harness unit (in a worker) on traced scenes; (record, outcome) per episode."""
+def end_gap_m(trace: np.ndarray) -> float:
+    """The tracked object's distance to its target in the plane at the episode's last step, m."""
+    return float(np.linalg.norm(trace[-1, 3:5] - trace[-1, 6:8]))
+
+
+def trace_unit(unit: harness.Unit) -> list[tuple[dict, str, float]]:
+    """Run one harness unit (in a worker) on traced scenes; (record, outcome, end_gap_m) per episode."""
     from lerobot_physvla.sim.scenes import cached_scene
 
     traced: dict[str, TracedScene] = {}
@@ -106,7 +111,8 @@ def trace_unit(unit: harness.Unit) -> list[tuple[dict, str]]:
     harness._scene = scene  # compute_unit builds its scene through this: the rest of it runs as in a study
     payload = harness.compute_unit(unit)
     episodes = traced[unit.scene_name].episodes[-unit.episodes:]
-    return [(rec, outcome(rec["success"], np.asarray(tr))) for rec, tr in zip(payload["records"], episodes)]
+    return [(rec, outcome(rec["success"], np.asarray(tr)), end_gap_m(np.asarray(tr)))
+            for rec, tr in zip(payload["records"], episodes)]
 
 
 def table(rows: list[list[str]]) -> str:
@@ -151,25 +157,31 @@ def main() -> None:
 
     todo = {(args.backbone, c, block.scene, t): seeds for c in configs for t in tasks}
     units = missing_units(study, todo, 5, args.checkpoints)
-    results: list[tuple[str, dict, str]] = []
+    results: list[tuple[str, dict, str, float]] = []
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         futures = {pool.submit(trace_unit, u): u for u in units}
         for f in tqdm(futures, desc="units", unit="unit"):
-            results += [(futures[f].config_name, rec, out) for rec, out in f.result()]
+            results += [(futures[f].config_name, rec, out, gap) for rec, out, gap in f.result()]
 
     names = {study.config_hash(c, block.scene): c for c in configs}
     stored = {(r["backbone"], r["config"], r["scene"], r["task_id"], r["seed"]): r["success"]
               for d in study.data for r in Store(d).rows}
-    agree = [stored[k] == rec["success"] for h, rec, _ in results
+    agree = [stored[k] == rec["success"] for h, rec, _, _ in results
              if (k := (args.backbone, h, block.scene, rec["task_id"], rec["seed"])) in stored]
-    by = {(names[h], rec["task_id"], rec["seed"]): out for h, rec, out in results}
+    by = {(names[h], rec["task_id"], rec["seed"]): out for h, rec, out, _ in results}
+    gaps = {(names[h], rec["task_id"], rec["seed"]): gap for h, rec, _, gap in results}
+
+    def cell(c: str, o: str) -> str:
+        """How many of configuration c's episodes ended in outcome o, and their object's median end gap to target."""
+        g = [gaps[(c, t, s)] for t in tasks for s in seeds if by[(c, t, s)] == o]
+        return f"{len(g)} ({np.median(g):.2f} m)" if g else "0"
 
     lines = [f"{study.name}, block {args.block} ({block.scene}, tasks {tasks}, seeds {seeds[0]}-{seeds[-1]}), "
              f"{args.backbone}: {len(results)} episodes",
              f"success as the study stored it: {sum(agree)} of {len(agree)} replayed episodes agree"
              + ("" if len(agree) else " (the study holds none of them)"), "",
-             table([["outcome", *configs]] + [[o, *(str(sum(by[(c, t, s)] == o for t in tasks for s in seeds))
-                                                  for c in configs)] for o in OUTCOMES]), "",
+             "episodes per outcome (the object's median distance to its target in the plane at the end, m):",
+             table([["outcome", *configs]] + [[o, *(cell(c, o) for c in configs)] for o in OUTCOMES]), "",
              "per task, one digit a seed (" + ", ".join(f"{k} {o}" for k, o in enumerate(OUTCOMES)) + "):"]
     code = {o: str(k) for k, o in enumerate(OUTCOMES)}
     for c in configs:
