@@ -9,8 +9,9 @@ eval/harness.py's compute_unit, unchanged, on a scene whose reads are recorded, 
 movable object did (on a two-object goal, the object of the sub-goal the corrector followed last):
 
     success                  the task's own success
-    never reached            the hand never came within REACH_M of the object
-    reached, not lifted      the object never rose LIFT_M above where it rested
+    never reached            not lifted, and the hand never came within REACH_M of the object's rim and top (its
+                             extents from the scene's geometry, state.SCENE; a point where the scene has none)
+    reached, not lifted      the hand came that close, but the object never rose LIFT_M above where it rested
     lifted, dropped          lifted, and at the end back down, farther than NEAR_M (xy) from its target
     lifted, held at the end  lifted and still LIFT_M above its rest at the horizon
     on target, no success    lifted, and at the end within NEAR_M (xy) of its target, but the goal is not met
@@ -39,9 +40,10 @@ from run import missing_units  # noqa: E402
 from store import Store  # noqa: E402
 from study import Study, find  # noqa: E402
 
+from lerobot_physvla.core.state import SCENE  # noqa: E402
 from lerobot_physvla.replay.record import parse_range  # noqa: E402
 
-REACH_M = 0.05  # hand-to-object distance (3-D, m) that counts as having reached it
+REACH_M = 0.03  # how close (m) the hand must come to the object's rim in the plane and to its top to have reached it
 LIFT_M = 0.02  # rise above the object's rest height (m) that counts as lifted
 NEAR_M = 0.05  # object-to-target distance in the plane (m) that counts as on target
 SWITCH_M = 0.05  # a one-step jump of the tracked object's position (m): the corrector moved on to another object
@@ -66,30 +68,34 @@ class TracedScene:
 
     def read(self):
         st = self._scene.read()
-        self.episodes[-1].append(np.concatenate([st.eef_pos[0], st.obj_pos[0], st.target_pos[0]]).astype(float))
+        extents = st.scene[0, [SCENE.index("obj_radius"), SCENE.index("obj_top")]]
+        self.episodes[-1].append(np.concatenate([st.eef_pos[0], st.obj_pos[0], st.target_pos[0], extents]).astype(float))
         return st
 
 
 def outcome(success: bool, trace: np.ndarray) -> str:
-    """One episode's outcome (OUTCOMES) from its trace, rows (hand xyz, object xyz, target xyz) per step."""
+    """One episode's outcome (OUTCOMES) from its trace: rows (hand xyz, object xyz, target xyz[, the object's radius,
+    its top above its origin]) per step, m; extents that are missing or NaN count as 0 (a point object)."""
     if success:
         return "success"
-    hand, obj, target = trace[:, 0:3], trace[:, 3:6], trace[:, 6:9]
+    hand, obj = trace[:, 0:3], trace[:, 3:6]
     jumps = np.flatnonzero(np.linalg.norm(np.diff(obj, axis=0), axis=1) > SWITCH_M) + 1
     start = int(jumps[-1]) if len(jumps) else 0  # the last tracked object, from where it was first seen at rest
-    hand, obj, target = hand[start:], obj[start:], target[start:]
-    if not np.isfinite(obj).all() or len(obj) == 0:
-        return "never reached"
-    if np.linalg.norm(hand - obj, axis=1).min() > REACH_M:
+    trace = trace[start:]
+    hand, obj, target = trace[:, 0:3], trace[:, 3:6], trace[:, 6:9]
+    if len(obj) == 0 or not np.isfinite(obj).all():
         return "never reached"
     rise = obj[:, 2] - obj[0, 2]
-    if rise.max() < LIFT_M:
-        return "reached, not lifted"
-    if rise[-1] >= LIFT_M:
-        return "lifted, held at the end"
-    if np.linalg.norm(obj[-1, :2] - target[-1, :2]) <= NEAR_M:
-        return "on target, no success"
-    return "lifted, dropped"
+    if rise.max() >= LIFT_M:
+        if rise[-1] >= LIFT_M:
+            return "lifted, held at the end"
+        if np.linalg.norm(obj[-1, :2] - target[-1, :2]) <= NEAR_M:
+            return "on target, no success"
+        return "lifted, dropped"
+    radius, top = (np.nan_to_num(trace[:, 9]), np.nan_to_num(trace[:, 10])) if trace.shape[1] > 10 else (0.0, 0.0)
+    beside = np.linalg.norm(hand[:, :2] - obj[:, :2], axis=1) <= radius + REACH_M  # within reach of its rim
+    low = hand[:, 2] - (obj[:, 2] + top) <= REACH_M  # down to its top
+    return "reached, not lifted" if np.any(beside & low) else "never reached"
 
 
 def end_gap_m(trace: np.ndarray) -> float:

@@ -45,6 +45,14 @@ def test_failure_modes_sorts_an_episode_by_what_its_object_did():
     assert fm.outcome(False, _trace(held, held, tgt)) == "lifted, held at the end"
     on_target = _path(table, (0, 0, 0.95), (0.28, 0, 0.95), (0.28, 0, 0.9))
     assert fm.outcome(False, _trace(on_target, on_target, tgt)) == "on target, no success"
+    # a bowl (radius 7 cm, top 5 cm above its origin) whose rim the hand reaches 6 cm from its centre: reached with
+    # its extents, never reached as a point; lifted by the rim, it is lifted either way
+    rim = _path((0.06, 0, 0.96), (0.06, 0, 0.96))
+    bowl = np.concatenate([_trace(rim, rest, tgt), np.tile([0.07, 0.05], (len(rim), 1))], axis=1)
+    assert fm.outcome(False, bowl) == "reached, not lifted"
+    assert fm.outcome(False, _trace(rim, rest, tgt)) == "never reached"
+    carried = _path(table, (0, 0, 0.95), (0.1, 0, 0.95), (0.1, 0, 0.9))
+    assert fm.outcome(False, _trace(carried + [0.06, 0, 0.06], carried, tgt)) == "lifted, dropped"
     # a two-object goal: the first object carried off, then the corrector tracks a second one (a jump of its tracked
     # position) that the hand never reaches: the episode is judged by the second object
     first = _path(table, (0, 0, 0.95), (0.3, 0, 0.95))
