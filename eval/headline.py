@@ -233,9 +233,10 @@ def readme_block() -> str:
 def block() -> str:
     lines = [START, ""]
     lines += newest_table()
-    lines += ["**The other LIBERO suites, pre-registered ([eval/results/suites](eval/results/suites/README.md)): the "
-              "shape-planning scripted expert clean, jittered and faulty; success and the paired difference against "
-              "baseline [95 % CI]**\n", *suites_table(), ""]
+    lines += ["**The other LIBERO suites and MetaWorld, pre-registered ([eval/results/suites](eval/results/suites/README.md) "
+              "and the studies each row's policies come from): the shape-planning scripted expert clean, jittered and "
+              "faulty, the ACTs distilled from it, an image-input ACT, and the ACTs distilled from MetaWorld's own "
+              "scripted policies; success and the paired difference against baseline [95 % CI]**\n", *suites_table(), ""]
     lines += lift_tables()
     lines += robot_table()
     lines += success_table("table2", "LIBERO-Spatial, scripted backbones x modes (10 tasks x 5 seeds)",
