@@ -202,8 +202,8 @@ def _vs_baseline(rows: list[dict], base: list[dict]) -> str:
 def suites_table() -> list[str]:
     """Baseline, the shipped default (as frozen at 519c8932 for the pre-registered test) and the shipped default with
     `centre_guide=true` on the other LIBERO suites and with MetaWorld's ACTs (eval/studies/suites.toml,
-    suites_learned.toml, learned_goal_ten.toml, image_act.toml, centre_guide.toml, learned_metaworld.toml): success, and the paired difference against baseline [95 % CI]; "-" where a configuration did
-    not run on a block."""
+    suites_learned.toml, learned_goal_ten.toml, image_act.toml, centre_guide.toml, learned_metaworld.toml): success,
+    and the paired difference against baseline [95 % CI]; "-" where a configuration did not run on a block."""
     lines = ["| suite (tasks, init states) | policy | baseline | shipped default | with `centre_guide=true` |",
              "|---|---|---|---|---|"]
     loaded = [_load(name) for name in SUITE_STUDIES]

@@ -69,7 +69,8 @@ class TracedScene:
     def read(self):
         st = self._scene.read()
         extents = st.scene[0, [SCENE.index("obj_radius"), SCENE.index("obj_top")]]
-        self.episodes[-1].append(np.concatenate([st.eef_pos[0], st.obj_pos[0], st.target_pos[0], extents]).astype(float))
+        row = np.concatenate([st.eef_pos[0], st.obj_pos[0], st.target_pos[0], extents])
+        self.episodes[-1].append(row.astype(float))
         return st
 
 
@@ -142,7 +143,8 @@ def main() -> None:
 
     study = Study(find(args.study))
     if args.block not in study.blocks:
-        raise SystemExit(f"failure_modes: {study.name} has no block {args.block!r}; its blocks: {', '.join(study.blocks)}")
+        raise SystemExit(f"failure_modes: {study.name} has no block {args.block!r}; its blocks: "
+                         f"{', '.join(study.blocks)}")
     block = study.blocks[args.block]
     if block.scene == "so101_pick_place":
         raise SystemExit("failure_modes: the SO-101 robot scene runs through lerobot's robot processor, not a traced "
@@ -196,7 +198,8 @@ def main() -> None:
     for c in configs[1:]:
         moves = Counter((by[(ref, t, s)], by[(c, t, s)]) for t in tasks for s in seeds)
         changed = [[a, b, str(n)] for (a, b), n in sorted(moves.items()) if a != b]
-        lines += ["", f"{ref} -> {c}, the pairs that changed:", table([[ref, c, "pairs"]] + changed) if changed else "  none"]
+        lines += ["", f"{ref} -> {c}, the pairs that changed:",
+                  table([[ref, c, "pairs"]] + changed) if changed else "  none"]
     text = "\n".join(lines)
     print("\n" + text)
     if args.out:
