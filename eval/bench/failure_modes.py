@@ -52,8 +52,8 @@ OUTCOMES = ("success", "never reached", "reached, not lifted", "lifted, dropped"
 
 
 class TracedScene:
-    """A scene whose reads are recorded: per episode, per step (hand xyz, object xyz, target xyz), metres.
-    Everything else is the wrapped scene's."""
+    """A scene whose reads are recorded: per episode, per step (hand xyz, object xyz, target xyz, the object's radius
+    and its top above its origin), metres. Everything else is the wrapped scene's."""
 
     def __init__(self, scene):
         self._scene = scene
@@ -79,8 +79,7 @@ def outcome(success: bool, trace: np.ndarray) -> str:
     its top above its origin]) per step, m; extents that are missing or NaN count as 0 (a point object)."""
     if success:
         return "success"
-    hand, obj = trace[:, 0:3], trace[:, 3:6]
-    jumps = np.flatnonzero(np.linalg.norm(np.diff(obj, axis=0), axis=1) > SWITCH_M) + 1
+    jumps = np.flatnonzero(np.linalg.norm(np.diff(trace[:, 3:6], axis=0), axis=1) > SWITCH_M) + 1
     start = int(jumps[-1]) if len(jumps) else 0  # the last tracked object, from where it was first seen at rest
     trace = trace[start:]
     hand, obj, target = trace[:, 0:3], trace[:, 3:6], trace[:, 6:9]
