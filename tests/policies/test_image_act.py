@@ -93,8 +93,8 @@ def test_prepare_train_assemble_gives_a_policy_the_harness_runs(dataset, tmp_pat
                          "--out", str(back), "--device", "cpu", "--steps", "2"], capture_output=True, text=True,
                         cwd=ROOT, env={**__import__("os").environ, "OMP_NUM_THREADS": "1"})
     assert tr.returncode == 0, tr.stderr[-2000:]
-    parts = sorted(back.glob("model.safetensors.part*"))
-    assert parts and all(p.stat().st_size <= train_image_act.PART_BYTES for p in parts)
+    parts = sorted(back.glob("run.tar.part*"))
+    assert parts and all(p.stat().st_size <= train_image_act.device_train.PART_BYTES for p in parts)
     ckpt = train_image_act.assemble(back, run)
     (parts[0]).write_bytes(b"x" + parts[0].read_bytes()[1:])  # a damaged part is refused
     with pytest.raises(SystemExit, match="sha256"):
