@@ -63,6 +63,17 @@ FEATURES = {
 IMAGE = "observation.images.image"
 METAWORLD = "metaworld"
 METAWORLD_FPS = 80  # lerobot's MetaworldEnvConfig.fps (the env's 12.5 ms control step)
+SO101 = "so101_env"  # lerobot-env-so101's SO101PickPlace-v0 (sim/so101_env_sim.py)
+SO101_FPS = 10  # its control_dt of 0.1 s
+SO101_FEATURES = {
+    "observation.state": {"dtype": "float32", "shape": (14,),
+                          "names": [*(f"{j}.pos" for j in ("pan", "lift", "elbow", "wrist_flex", "wrist_roll")),
+                                    *(f"{j}.vel" for j in ("pan", "lift", "elbow", "wrist_flex", "wrist_roll")),
+                                    "gripper_cmd", "site_x", "site_y", "site_z"]},
+    "observation.environment_state": {"dtype": "float32", "shape": (6,),
+                                      "names": ["block_x", "block_y", "block_z", "goal_x", "goal_y", "goal_z"]},
+    "action": {"dtype": "float32", "shape": (4,), "names": ["dx", "dy", "dz", "grasp"]},
+}
 METAWORLD_FEATURES = {
     "observation.state": {"dtype": "float32", "shape": (4,), "names": ["hand_x", "hand_y", "hand_z", "fingers"]},
     "observation.environment_state": FEATURES["observation.environment_state"],
@@ -73,10 +84,10 @@ METAWORLD_FEATURES = {
 def features(camera_size: int = 0, suite: str = "libero_spatial") -> dict:
     """The dataset's features: state-only, or (camera_size > 0, LIBERO only) state and the agentview frame, no
     object state."""
-    if suite == METAWORLD:
+    if suite in (METAWORLD, SO101):
         if camera_size:
-            raise SystemExit("record_dataset: MetaWorld is recorded state-only; leave --camera-size out")
-        return METAWORLD_FEATURES
+            raise SystemExit(f"record_dataset: {suite} is recorded state-only; leave --camera-size out")
+        return METAWORLD_FEATURES if suite == METAWORLD else SO101_FEATURES
     if not camera_size:
         return FEATURES
     return {"observation.state": FEATURES["observation.state"],
@@ -93,6 +104,12 @@ def scene_and_teacher(suite: str, task_id: int, teacher: str, camera_size: int =
         scene = MetaworldScene(task_id)
         mw = MetaworldExpert(scene.task.name, MetaworldExpertConfig())
         return scene, (lambda seed: mw.reset(seed=seed)), (lambda st: mw.act(scene.raw_obs))
+    if suite == SO101:
+        from lerobot_physvla.sim.so101_env_expert import SO101EnvExpert
+        from lerobot_physvla.sim.so101_env_sim import SO101EnvScene
+
+        scene, so = SO101EnvScene(), SO101EnvExpert()
+        return scene, (lambda seed: so.reset(seed=seed)), (lambda st: so.act(scene))
     from lerobot_physvla.sim.experts import PickPlaceExpert
     from lerobot_physvla.sim.scenes import LiberoScene
     from lerobot_physvla.sim.shape_expert import ShapeExpert
@@ -118,7 +135,7 @@ def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0, s
         for _ in range(scene.horizon):
             st = scene.read()
             # the frame is rendered once, below
-            o = scene.policy_observation(st) if suite == METAWORLD else scene.policy_observation(st, frame=False)
+            o = scene.policy_observation(st) if suite in (METAWORLD, SO101) else scene.policy_observation(st, frame=False)
             a = np.asarray(act(st), dtype=np.float64)
             obs_s.append(o["observation.state"])
             obs_e.append(o["observation.environment_state"])
@@ -141,10 +158,10 @@ def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0, s
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--suite", default="libero_spatial",
-                    help="libero_spatial, libero_object, libero_goal, libero_10, or metaworld")
-    ap.add_argument("--teacher", choices=("bowl", "shape", METAWORLD), default=None,
+                    help=f"libero_spatial, libero_object, libero_goal, libero_10, {METAWORLD} or {SO101}")
+    ap.add_argument("--teacher", choices=("bowl", "shape", METAWORLD, "so101"), default=None,
                     help="bowl (sim/experts.py) or shape (sim/shape_expert.py); default: bowl on libero_spatial, "
-                         "MetaWorld's own on metaworld, else shape")
+                         "MetaWorld's own on metaworld, lerobot-env-so101's controller on so101_env, else shape")
     ap.add_argument("--out", default=None, help="dataset root (replaced); default outputs/datasets/physvla_<suite>")
     ap.add_argument("--repo-id", default=None, help="default local/physvla_<suite>")
     ap.add_argument("--tasks", default="0-9")
@@ -159,9 +176,11 @@ def main() -> None:
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     teacher = args.teacher or ("bowl" if args.suite == "libero_spatial" else METAWORLD if args.suite == METAWORLD
-                               else "shape")
+                               else "so101" if args.suite == SO101 else "shape")
     if (teacher == METAWORLD) != (args.suite == METAWORLD):
         sys.exit("record_dataset: MetaWorld's teacher runs on --suite metaworld only, and only it runs there")
+    if (teacher == "so101") != (args.suite == SO101):
+        sys.exit(f"record_dataset: the so101 teacher runs on --suite {SO101} only, and only it runs there")
     feats = features(args.camera_size, args.suite)
     name = f"physvla_{args.suite}" + (f"_agentview{args.camera_size}" if args.camera_size else "")
     args.out = args.out or f"outputs/datasets/{name}"
@@ -180,9 +199,8 @@ def main() -> None:
     out = Path(args.out)
     if out.exists():
         shutil.rmtree(out)
-    mw = args.suite == METAWORLD
-    ds = LeRobotDataset.create(args.repo_id, fps=METAWORLD_FPS if mw else FPS, features=feats, root=out,
-                               robot_type="sawyer" if mw else "panda", use_videos=False)
+    fps, robot = {METAWORLD: (METAWORLD_FPS, "sawyer"), SO101: (SO101_FPS, "so101")}.get(args.suite, (FPS, "panda"))
+    ds = LeRobotDataset.create(args.repo_id, fps=fps, features=feats, root=out, robot_type=robot, use_videos=False)
     for ep in tqdm(episodes, desc="writing", unit="episode"):
         for t, (s, e, a) in enumerate(zip(ep["state"], ep["env"], ep["action"])):
             frame = {"observation.state": s, "action": a, "task": ep["task"]}

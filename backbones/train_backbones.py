@@ -210,7 +210,8 @@ MID_CHOICE: dict[str, tuple[str, int]] = {"act_single_mid": (f"{CPU_DRAW_DIR}/ac
 #  - weaker sibling, `<short>_<recipe>_weak`: of the other checkpoints, the one in WEAK_BAND closest to
 #    WEAK_TARGET, ties to the earlier step; if none lies in the band the run has no weaker sibling
 #    (reported, not searched further).
-SUITE_SHORT = {"libero_object": "object", "libero_goal": "goal", "libero_10": "ten", "metaworld": "mw"}
+SUITE_SHORT = {"libero_object": "object", "libero_goal": "goal", "libero_10": "ten", "metaworld": "mw",
+               "so101_env": "so101"}
 SUITE_RECIPES = ("act_single", "act_chunk")
 STRONG_BAND, WEAK_BAND, WEAK_TARGET = (0.60, 0.95), (0.20, 0.50), 0.35
 # "<short>_<recipe>[_weak]" -> (its run's directory under the training root, step), as the selection

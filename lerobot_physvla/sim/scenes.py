@@ -236,7 +236,11 @@ def make_scene(name: str) -> Scene:
         from lerobot_physvla.sim.fetch_sim import FetchScene
 
         return FetchScene()
+    if name == "so101_env":
+        from lerobot_physvla.sim.so101_env_sim import SO101EnvScene
+
+        return SO101EnvScene()
     raise ValueError(
         f"physvla: unknown scene {name!r}; choose libero_spatial/<0-9> (or another LIBERO suite), metaworld/<0-5>, "
-        "lift, lift_plate or fetch_pick_place"
+        "lift, lift_plate, fetch_pick_place or so101_env"
     )

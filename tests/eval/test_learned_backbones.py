@@ -339,7 +339,8 @@ def test_the_suite_paths_and_repo_id_follow_the_suite():
 
 # each suite's selection study (its results directory) and the episodes it ran per checkpoint
 SELECTION = {"libero_object": ("suites_learned_select", 50), "libero_goal": ("learned_goal_ten_select", 30),
-             "libero_10": ("learned_goal_ten_select", 30), "metaworld": ("learned_metaworld_select", 60)}
+             "libero_10": ("learned_goal_ten_select", 30), "metaworld": ("learned_metaworld_select", 60),
+             "so101_env": ("learned_so101_select", 50)}
 
 
 def test_the_kept_suite_acts_are_the_ones_the_rule_chose_on_their_selection_block():
