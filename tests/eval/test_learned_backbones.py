@@ -428,3 +428,55 @@ def test_recorded_metaworld_observations_are_what_lerobot_eval_feeds_the_policy(
         a = policy.act(scene, scene.read())
         assert a.shape == (4,) and np.isfinite(a).all()
         scene.step(np.clip(a, -1, 1))
+
+
+@pytest.mark.slow
+def test_recorded_so101_observations_are_what_lerobot_eval_feeds_the_policy(tmp_path):
+    """The same agreement on the SO-101 (issue: MetaWorld and the SO-101, backbones from their own teachers): a
+    recorded episode of lerobot-env-so101's pick-and-place controller (seed 100, no DART noise), replayed in
+    `--env.type=so101_physvla --env.random_block_position=true --env.action_scale=0.025` through lerobot-eval's
+    observation path, gives at every frame the recorded agent_pos and block / goal xyz, and ends in the env's
+    success; the dataset is the so101 4-D layout at 10 fps. An ACT trained on it (2 steps) acts in the harness."""
+    ds = tmp_path / "ds"
+    rec = subprocess.run([sys.executable, str(ROOT / "backbones/record_dataset.py"), "--suite", "so101_env", "--tasks",
+                          "0", "--seeds", "100", "--dart-sigma", "0", "--workers", "1", "--out", str(ds)],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert rec.returncode == 0, rec.stderr[-2000:]
+    info = json.loads((ds / "meta" / "info.json").read_text())
+    assert info["fps"] == 10 and info["robot_type"] == "so101" and info["total_episodes"] == 1
+    assert info["features"]["observation.state"]["shape"] == [14] and info["features"]["action"]["shape"] == [4]
+
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    from lerobot.envs.utils import preprocess_observation
+
+    from lerobot_physvla.envs.so101_physvla import SO101PhysVLAEnvConfig
+
+    data = LeRobotDataset("local/alignment_so101", root=ds)
+    cfg_env = SO101PhysVLAEnvConfig(task="SO101PickPlace-v0", action_scale=0.025, random_block_position=True)
+    vec = cfg_env.create_envs(n_envs=1)["SO101PickPlace-v0"][0]
+    env_pre, _ = cfg_env.get_env_processors()
+    try:
+        obs, _ = vec.reset(seed=[100])
+        for t in range(data.num_frames):
+            seen, frame = env_pre(preprocess_observation(obs)), data[t]
+            for key in ("observation.state", "observation.environment_state"):
+                np.testing.assert_allclose(seen[key][0].numpy(), frame[key].numpy(), atol=1e-4, err_msg=f"{key} at {t}")
+            obs, _, terminated, _, step_info = vec.step(frame["action"].numpy()[None].astype(np.float64))
+        assert terminated[0] and step_info["final_info"]["is_success"][0]
+    finally:
+        vec.close()
+
+    train = subprocess.run([sys.executable, str(ROOT / "backbones/train_backbones.py"), "act_chunk", "--dataset", str(ds),
+                            "--out", str(tmp_path / "train"), "--steps", "2"], capture_output=True, text=True, cwd=ROOT)
+    assert train.returncode == 0, train.stdout[-2000:] + train.stderr[-2000:]
+    from backbones import LeRobotBackbone
+
+    from lerobot_physvla.sim.so101_env_sim import SO101EnvScene
+
+    scene, policy = SO101EnvScene(), LeRobotBackbone(str(train_backbones.checkpoint("act_chunk", str(tmp_path / "train"))))
+    scene.reset(100)
+    policy.reset(100)
+    for _ in range(3):
+        a = policy.act(scene, scene.read())
+        assert a.shape == (4,) and np.isfinite(a).all()
+        scene.step(np.clip(a, [-1, -1, -1, 0], 1))
