@@ -61,7 +61,8 @@ def dataset_arrays(dataset: Path, keys: list[str]) -> dict[str, np.ndarray]:
     out: dict[str, list] = {k: [] for k in cols}
     files = sorted((dataset / "data").glob("chunk-*/file-*.parquet"))
     if not files:
-        raise SystemExit(f"device_train: no frames under {dataset}/data; record them first (backbones/record_dataset.py)")
+        raise SystemExit(f"device_train: no frames under {dataset}/data; record them first "
+                         "(backbones/record_dataset.py)")
     for f in files:
         t = pq.read_table(f, columns=cols, use_threads=False).to_pydict()
         for k in cols:

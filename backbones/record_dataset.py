@@ -141,7 +141,8 @@ def rollout(task_id: int, seeds: list[int], dart_sigma: float, level: int = 0, s
         for _ in range(scene.horizon):
             st = scene.read()
             # the frame is rendered once, below
-            o = scene.policy_observation(st) if suite in (METAWORLD, SO101) else scene.policy_observation(st, frame=False)
+            state_only = suite in (METAWORLD, SO101)
+            o = scene.policy_observation(st) if state_only else scene.policy_observation(st, frame=False)
             a = np.asarray(act(st), dtype=np.float64)
             obs_s.append(o["observation.state"])
             obs_e.append(o["observation.environment_state"])

@@ -182,13 +182,15 @@ def readme_table() -> list[str]:
 
 
 SUITES = {"object": "LIBERO-Object", "goal": "LIBERO-Goal", "ten": "LIBERO-10",
-          "image": "LIBERO-Spatial, agentview camera", "metaworld": "MetaWorld"}
+          "image": "LIBERO-Spatial, agentview camera", "metaworld": "MetaWorld", "so101": "SO-101 pick-and-place"}
 
 
 # the scripted teacher's study, the ACTs distilled from it, the image-input ACT (eval/studies/image_act.toml), the
 # centre guide's confirmation blocks (eval/studies/centre_guide.toml: the option `centre_guide` beside the shipped
-# default, docs/decisions/25-centre-guide.md), and the ACTs distilled from MetaWorld's own scripted policies
-SUITE_STUDIES = ("suites", "suites_learned", "learned_goal_ten", "image_act", "centre_guide", "learned_metaworld")
+# default, docs/decisions/25-centre-guide.md), the ACTs distilled from MetaWorld's own scripted policies, and
+# lerobot-env-so101's pick-and-place controller with the ACTs distilled from it
+SUITE_STUDIES = ("suites", "suites_learned", "learned_goal_ten", "image_act", "centre_guide", "learned_metaworld",
+                 "learned_so101")
 BEFORE, NOW = "shipped default", "default + centre guide"
 
 
@@ -201,8 +203,9 @@ def _vs_baseline(rows: list[dict], base: list[dict]) -> str:
 
 def suites_table() -> list[str]:
     """Baseline, the shipped default (as frozen at 519c8932 for the pre-registered test) and the shipped default with
-    `centre_guide=true` on the other LIBERO suites and with MetaWorld's ACTs (eval/studies/suites.toml,
-    suites_learned.toml, learned_goal_ten.toml, image_act.toml, centre_guide.toml, learned_metaworld.toml): success,
+    `centre_guide=true` on the other LIBERO suites, MetaWorld and the SO-101 (eval/studies/suites.toml,
+    suites_learned.toml, learned_goal_ten.toml, image_act.toml, centre_guide.toml, learned_metaworld.toml,
+    learned_so101.toml): success,
     and the paired difference against baseline [95 % CI]; "-" where a configuration did not run on a block."""
     lines = ["| suite (tasks, init states) | policy | baseline | shipped default | with `centre_guide=true` |",
              "|---|---|---|---|---|"]
@@ -212,7 +215,8 @@ def suites_table() -> list[str]:
             for name, bl in study.blocks.items():
                 if name != bn and name != f"{bn}_weak":
                     continue
-                where = f"{title} ({len(bl.tasks)} tasks, {bl.seeds[0]}-{bl.seeds[-1]})"
+                where = (f"{title} ({len(bl.tasks)} tasks, {bl.seeds[0]}-{bl.seeds[-1]})" if len(bl.tasks) > 1 else
+                         f"{title} (seeds {bl.seeds[0]}-{bl.seeds[-1]})")
                 for b in bl.backbones:
                     n = len(bl.tasks) * len(bl.seeds)
                     base, before = rows.get("baseline", b, bl), rows.get(BEFORE, b, bl)
@@ -233,10 +237,12 @@ def readme_block() -> str:
 def block() -> str:
     lines = [START, ""]
     lines += newest_table()
-    lines += ["**The other LIBERO suites and MetaWorld, pre-registered ([eval/results/suites](eval/results/suites/README.md) "
-              "and the studies each row's policies come from): the shape-planning scripted expert clean, jittered and "
-              "faulty, the ACTs distilled from it, an image-input ACT, and the ACTs distilled from MetaWorld's own "
-              "scripted policies; success and the paired difference against baseline [95 % CI]**\n", *suites_table(), ""]
+    lines += ["**The other LIBERO suites, MetaWorld and the SO-101, pre-registered "
+              "([eval/results/suites](eval/results/suites/README.md) and the studies each row's policies come from): "
+              "the shape-planning scripted expert clean, jittered and "
+              "faulty, the ACTs distilled from it, an image-input ACT, the ACTs distilled from MetaWorld's own "
+              "scripted policies, and lerobot-env-so101's pick-and-place controller with the ACTs distilled from it; "
+              "success and the paired difference against baseline [95 % CI]**\n", *suites_table(), ""]
     lines += lift_tables()
     lines += robot_table()
     lines += success_table("table2", "LIBERO-Spatial, scripted backbones x modes (10 tasks x 5 seeds)",

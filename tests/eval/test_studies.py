@@ -256,6 +256,22 @@ def test_a_study_that_names_an_unknown_configuration_says_which(tmp_path):
         Study(path)
 
 
+def test_a_scene_override_may_spell_an_action_layout_out():
+    """The SO-101 env's layout follows its action_scale, so no name in LAYOUTS holds it: learned_so101.toml spells it
+    out for its scene, every configuration there takes it (0.025 m a unit, grasp 1 open / 0 closed), and the
+    configurations keep the default layout on other scenes."""
+    from lerobot_physvla.core.config import PhysVLAConfig
+
+    study = Study(study_mod.find("learned_so101"))
+    for name in ("baseline", "shipped default", "smooth"):
+        cfg = PhysVLAConfig.from_dict(study.config(name, "so101_env"))
+        lay = cfg.action_layout
+        assert (lay.dim, lay.pos, lay.gripper, lay.metres_per_unit, lay.gripper_open, lay.gripper_shut) == \
+            (4, (0, 1, 2), 3, 0.025, 1.0, 0.0)
+        assert cfg.weighting == "task_space"
+        assert study.config(name, "libero_spatial")["layout"] == "libero_osc_pose"
+
+
 def test_no_study_may_run_the_untouched_libero_init_states(tmp_path):
     """Init states 40-49 of every LIBERO suite stay untouched: a study block that reaches into them is refused when the
     file is read, before anything runs; other scenes' seeds 40-49 are ordinary seeds."""

@@ -27,12 +27,12 @@ def test_act_chunk_long_is_act_chunks_policy():
     checkpoint's config.json), field by field: only the update (batch, steps) differs."""
     committed = ROOT / "backbones/checkpoints/goal_act_chunk"
     want = json.loads((committed / "config.json").read_text())
-    meta = SimpleNamespace(features={"observation.state": {"shape": [8]}, "observation.environment_state": {"shape": [6]},
-                                     "action": {"shape": [7]}})
+    meta = SimpleNamespace(features={"observation.state": {"shape": [8]},
+                                     "observation.environment_state": {"shape": [6]}, "action": {"shape": [7]}})
     cfg = device_train.state_policy_config("act_chunk_long", meta)
     got = json.loads(json.dumps(cfg.__dict__ | {"type": cfg.type}, default=lambda o: getattr(o, "value", o.__dict__)))
-    got["input_features"] = {k: {"type": v["type"], "shape": list(v["shape"])} for k, v in got["input_features"].items()}
-    got["output_features"] = {k: {"type": v["type"], "shape": list(v["shape"])} for k, v in got["output_features"].items()}
+    for io in ("input_features", "output_features"):
+        got[io] = {k: {"type": v["type"], "shape": list(v["shape"])} for k, v in got[io].items()}
     diff = {k: (got.get(k), v) for k, v in want.items() if got.get(k) != v}
     assert diff == {}
     assert json.loads((committed / "recipe.json").read_text())["command"].count("--batch_size=32") == 1
