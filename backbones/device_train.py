@@ -277,6 +277,18 @@ def train(carry: Path, out: Path, device: str, steps: int | None, max_minutes: f
           f"{len(blob) / 2**20:.1f} MiB in {-(-len(blob) // PART_BYTES)} parts -> {out}")
 
 
+def add_train_parser(sub, help: str, carry: str | None, out: str, max_minutes: float):
+    """The `train` subcommand (what the GPU machine runs), shared with train_image_act.py."""
+    t = sub.add_parser("train", help=help)
+    t.add_argument("--carry", required=carry is None, default=carry)
+    t.add_argument("--out", default=os.environ.get("OUT", out))
+    t.add_argument("--device", default="cuda")
+    t.add_argument("--steps", type=int, default=None, help="override the recipe's steps (smoke tests)")
+    t.add_argument("--max-minutes", type=float, default=max_minutes,
+                   help="save and stop once this much time has passed")
+    return t
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -285,12 +297,7 @@ def main() -> None:
     p.add_argument("--recipe", required=True, choices=sorted(STATE_RECIPES))
     p.add_argument("--dataset", default=None, help="dataset root (default outputs/datasets/physvla_<suite>)")
     p.add_argument("--carry", default=None, help=f"default {CARRY_ROOT}/<suite>_<recipe>")
-    t = sub.add_parser("train", help="the GPU machine (or here): train the carried recipe")
-    t.add_argument("--carry", required=True)
-    t.add_argument("--out", default=os.environ.get("OUT", "outputs/device_run"))
-    t.add_argument("--device", default="cuda")
-    t.add_argument("--steps", type=int, default=None, help="override the recipe's steps (smoke tests)")
-    t.add_argument("--max-minutes", type=float, default=8.0, help="save and stop once this much time has passed")
+    add_train_parser(sub, "the GPU machine (or here): train the carried recipe", None, "outputs/device_run", 8.0)
     a = sub.add_parser("assemble", help="here: unpack what a device run returned into a training folder")
     a.add_argument("back", help="the folder holding run.json and run.tar.part*")
     a.add_argument("--out", required=True, help="e.g. outputs/train/libero_goal/act_chunk_long")

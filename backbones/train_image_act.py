@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shutil
 import sys
 from pathlib import Path
@@ -156,12 +155,8 @@ def main() -> None:
     p = sub.add_parser("prepare", help="here: the initial checkpoint and the data the GPU machine needs")
     p.add_argument("--dataset", default=DATASET)
     p.add_argument("--carry", default=str(CARRY))
-    t = sub.add_parser("train", help="the GPU machine (or here): train RECIPE's steps")
-    t.add_argument("--carry", default=str(CARRY))
-    t.add_argument("--out", default=os.environ.get("OUT", "outputs/image_act_run"))
-    t.add_argument("--device", default="cuda")
-    t.add_argument("--steps", type=int, default=None, help="override the recipe's steps (smoke tests)")
-    t.add_argument("--max-minutes", type=float, default=7.5, help="save and stop once this much time has passed")
+    device_train.add_train_parser(sub, "the GPU machine (or here): train RECIPE's steps", str(CARRY),
+                                  "outputs/image_act_run", 7.5)
     a = sub.add_parser("assemble", help="here: join what the device run returned into a checkpoint")
     a.add_argument("back", help="the folder holding run.json and run.tar.part*")
     a.add_argument("--out", default=OUT_RUN)
