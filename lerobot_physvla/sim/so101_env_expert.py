@@ -46,11 +46,13 @@ class SO101EnvExpert:
 
     def __init__(self, cfg: SO101EnvExpertConfig | None = None):
         from lerobot_env_so101.scripted import PickPlaceController
+        from lerobot_env_so101.scripted.pick_place import Phase
 
         from lerobot_physvla.sim.so101_env_sim import ACTION_SCALE
 
         self.cfg = cfg or SO101EnvExpertConfig()
         self.controller = PickPlaceController(action_scale=ACTION_SCALE)
+        self._before_grasp = (Phase.HOVER, Phase.DESCEND)  # where a premature close can fire
         self.reset(self.cfg.seed)
 
     def reset(self, seed: int = 0) -> None:
@@ -61,13 +63,10 @@ class SO101EnvExpert:
 
     def act(self, scene) -> np.ndarray:
         """The next action on `scene` (an SO101EnvScene), failure modes applied."""
-        from lerobot_env_so101.scripted.pick_place import Phase
-
-        env = scene.env
-        grasp = np.asarray(env.ik_point_pos, dtype=np.float64)
-        block = np.asarray(env.data.sensor("block_pos").data, dtype=np.float64)
-        a = np.asarray(self.controller.act(grasp, block, env.goal_pos), dtype=np.float64)
-        early = self.controller.phase in (Phase.HOVER, Phase.DESCEND)
+        src = scene.source  # the env's own ik_point_pos, block_pos sensor and goal_pos, as the controller reads them
+        grasp, block = src.eef(), src.object_pos()
+        a = np.asarray(self.controller.act(grasp, block, src.target_pos()), dtype=np.float64)
+        early = self.controller.phase in self._before_grasp
         if self.close_early and early and (self.closing or np.hypot(*(grasp[:2] - block[:2])) < PREMATURE_XY_M):
             self.closing = True
             a[3] = 0.0
