@@ -24,6 +24,10 @@
                               perception = {noise_m = 0.01}}   # pose_noise_m "truth": the noise's sigma, and then
                                        # pose_error_m "truth" is the bias alone (the filter answers to the noise)
 
+    [pinned]                           # fields every configuration takes unless it sets them: a default's
+    centre_guide = false               # options as they stood when the study ran, so a later default leaves
+                                       # its configurations (and their hashes) as they were
+
     [scene_overrides]                  # fields every configuration takes on one scene
     fetch_pick_place = {layout = "fetch_4d", weighting = "task_space"}
 
@@ -118,6 +122,7 @@ class Study:
         self.backbones = dict(raw.get("backbones", {}))
         self.config_specs = dict(raw.get("configs", {}))
         self.scene_overrides = dict(raw.get("scene_overrides", {}))
+        self.pinned = dict(raw.get("pinned", {}))
         self.blocks = {n: self._block(n, b) for n, b in raw.get("blocks", {}).items()}
         self.compares = [self._compare(c) for c in raw.get("compare", [])]
         self.report = list(raw.get("report", []))
@@ -188,7 +193,8 @@ class Study:
 
             from lerobot_physvla.sources.perception import PerceptionConfig
 
-            spec = {k: tuple(v) if isinstance(v, list) else v for k, v in self.config_specs[name].items()}
+            spec = {k: tuple(v) if isinstance(v, list) else v
+                    for k, v in {**self.pinned, **self.config_specs[name]}.items()}
             spec.update(self.scene_overrides.get(scene, {}))
             if isinstance(spec.get("layout"), dict):  # an ActionLayout spelled out (the so101 layout: the env's scale)
                 from lerobot_physvla.core.config import ActionLayout
@@ -240,7 +246,7 @@ def _load(path: Path) -> dict:
     raw = tomllib.loads(path.read_text())
     if "extends" in raw:
         base = _load((path.parent / raw.pop("extends")).resolve())
-        for k in ("groups", "backbones", "configs", "blocks", "scene_overrides"):
+        for k in ("groups", "backbones", "configs", "blocks", "scene_overrides", "pinned"):
             raw[k] = {**base.get(k, {}), **raw.get(k, {})}
         for k in ("made_by",):
             raw.setdefault(k, base.get(k, []))

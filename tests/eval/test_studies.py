@@ -273,6 +273,26 @@ def test_a_scene_override_may_spell_an_action_layout_out():
         assert study.config(name, "libero_spatial")["layout"] == "libero_osc_pose"
 
 
+def test_pinned_fields_hold_a_study_to_the_default_it_ran(tmp_path):
+    """`[pinned]`: fields every configuration takes unless it sets them, so a study keeps the default it ran (and its
+    configurations' hashes) when a later default changes them; a study that extends it inherits them."""
+    from store import config_hash
+
+    from lerobot_physvla.core.config import preset
+
+    path = tmp_path / "pinned.toml"
+    path.write_text(STUDY.replace("[configs]", "[pinned]\nrim_guide_m = 0.0\nlift_assist_u = 0.0\n[configs]", 1))
+    pinned = Study(path)
+    assert pinned.config("default")["rim_guide_m"] == 0.0 and pinned.config("default")["lift_assist_u"] == 0.0
+    assert pinned.config("rim 5 cm")["rim_guide_m"] == 0.05  # a configuration's own field wins
+    assert pinned.config("rim 5 cm")["lift_assist_u"] == 0.0
+    assert pinned.config_hash("default") == config_hash(preset("default", rim_guide_m=0.0, lift_assist_u=0.0).to_dict())
+    assert pinned.config_hash("default") != config_hash(preset("default").to_dict())
+    child = tmp_path / "child.toml"
+    child.write_text('extends = "pinned.toml"\ntitle = "child"\n')
+    assert Study(child).config("default") == pinned.config("default")
+
+
 def test_no_study_may_run_the_untouched_libero_init_states(tmp_path):
     """Init states 40-49 of every LIBERO suite stay untouched: a study block that reaches into them is refused when the
     file is read, before anything runs; other scenes' seeds 40-49 are ordinary seeds."""
