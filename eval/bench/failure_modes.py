@@ -132,7 +132,8 @@ def main() -> None:
     ap.add_argument("study", help="a study file, or a name under eval/studies/")
     ap.add_argument("--block", required=True, help="one of the study's blocks")
     ap.add_argument("--backbone", required=True, help="one backbone of that block")
-    ap.add_argument("--configs", required=True, help="comma-separated configurations; the first is the reference")
+    ap.add_argument("--configs", required=True, help="comma-separated configurations (semicolon-separated where a name holds a comma); the first "
+                    "is the reference")
     ap.add_argument("--tasks", default=None, help="a subset of the block's tasks, e.g. 1,6,8")
     ap.add_argument("--seeds", default=None, help="a subset of the block's seeds, e.g. 5-7")
     ap.add_argument("--workers", type=int, default=2)
@@ -151,7 +152,7 @@ def main() -> None:
     if args.backbone not in block.backbones:
         raise SystemExit(f"failure_modes: block {args.block} has no backbone {args.backbone!r}; its backbones: "
                          f"{', '.join(block.backbones)}")
-    configs = [c.strip() for c in args.configs.split(",") if c.strip()]
+    configs = [c.strip() for c in args.configs.split(";" if ";" in args.configs else ",") if c.strip()]
     unknown = [c for c in configs if c not in study.config_specs]
     if unknown:
         raise SystemExit(f"failure_modes: {study.name} has no configuration(s) {unknown}; its configurations: "

@@ -149,3 +149,38 @@ def test_the_gripper_veto_and_the_lift_threshold_widen_by_the_pose_error():
         c = Corrector(PhysVLAConfig(pose_error_m=e))
         c(a, s)
         assert c.last.phase[0] == phase
+
+
+def test_the_release_assist_widens_its_on_target_test_by_k_pose_errors_only_where_told():
+    """release_assist_error_k: an object held still over the target but seen 2.7 cm off it (a 2 cm pose bias; the
+    tolerance is 2 cm) is let go with k = 1 and pose_error_m = 2 cm, not with k = 0, nor with k = 1 and no error
+    told, nor once the error passes the tolerance (the assist stands down)."""
+    from lerobot_physvla.core.corrections.release_assist import ANCHOR, STALL
+
+    (c,) = [c for c in CORRECTIONS if c.name == "release_assist"]
+    lay = LIBERO_OSC_POSE
+    idx = channel_index(lay)
+    g = np.zeros(N_GEO)
+    g[TGT:TGT + 3] = (0.0, 0.0, 0.90)
+    g[OBJ:OBJ + 3] = (0.027, 0.0, 0.905)  # seen 2.7 cm off the target, 0.5 cm above it
+    g[EEF:EEF + 3] = (0.027, 0.0, 0.95)
+    g[LIFT] = 0.0  # the target lies at the object's resting level: a surface
+    held = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])  # closed, no motion
+
+    def opens(**kw) -> bool:
+        cfg = PhysVLAConfig(**kw)
+        p = params(cfg, lay)
+        mem = np.zeros(N_MEM)
+        mem[STALL] = cfg.assist_steps - 1  # held still for all but the last step
+        mem[ANCHOR:ANCHOR + 3] = g[EEF:EEF + 3]
+        out = held.copy()
+        c.kernel(held, out, idx, g, p, mem, True)
+        return out[6] == -1.0
+
+    assert not opens()
+    assert not opens(pose_error_m=0.02)
+    assert opens(pose_error_m=0.02, release_assist_error_k=1.0)
+    assert not opens(release_assist_error_k=1.0)
+    assert not opens(pose_error_m=0.021, release_assist_error_k=1.0)  # beyond redirect_tol_m: it stands down
+    with pytest.raises(ValueError, match="release_assist_error_k"):
+        PhysVLAConfig(release_assist_error_k=-1.0)

@@ -8,7 +8,10 @@ paper; release_assist_m > 0, with place_rule=release_veto).
     after `assist_steps` control steps in a row on target, on a surface and still:
         gripper <- open, and kept open while the phase stays place
     pose error (pose_error_m = e): "on target" is judged from the poses, so the assist acts only while
-    e <= tol; beyond, it cannot tell on target from off it and leaves the gripper to the policy.
+    e <= tol; beyond, it cannot tell on target from off it and leaves the gripper to the policy. With
+    release_assist_error_k = k > 0 the test above takes tol + k e and h + k e in place of tol and h: an object
+    held on target but seen up to k e off it (a biased pose: the object and the target each off by up to e)
+    still counts as on target; 0 (every preset) judges within tol alone.
 
 Traced failure (eval/results/learned_mid, docs/method.md): weak chunked ACTs carry the bowl to the
 plate, lower it to 1-4 cm above the plate's origin (or set it down on it) and then hold it there,
@@ -35,9 +38,10 @@ from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED,
 from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M
 from lerobot_physvla.core.phase import PLACE
 
-PARAMS = ("ASSIST_M", "ASSIST_STEPS", "ASSIST_STILL_HAND")  # the highest hold, m; steps held; 1.0: judged by the hand
+# the highest hold, m; steps held; 1.0: judged by the hand; the pose errors the on-target test widens by
+PARAMS = ("ASSIST_M", "ASSIST_STEPS", "ASSIST_STILL_HAND", "ASSIST_ERROR_K")
 MEMORY = (("STALL", 1), ("ANCHOR", 3))  # steps held still over the target; the hand where the hold began, m
-ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND = slots.params(__file__)
+ASSIST_M, ASSIST_STEPS, ASSIST_STILL_HAND, ASSIST_ERROR_K = slots.params(__file__)
 STALL, ANCHOR = slots.memory(__file__)
 
 STILL_U = 0.05  # the policy commands no motion: every position channel below this, action units
@@ -56,7 +60,8 @@ def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
         return
     c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])  # the command's midpoint (base.py): beyond it, a close
     closed = (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0
-    tol = p[REDIRECT_TOL_M]
+    widen = p[ASSIST_ERROR_K] * p[POSE_ERROR_M]  # the pose error the on-target test allows for, m
+    tol = p[REDIRECT_TOL_M] + widen
     ex, ey = geo[TGT] - geo[OBJ], geo[TGT + 1] - geo[OBJ + 1]
     dz = geo[OBJ + 2] - geo[TGT + 2]
     rest_z = geo[OBJ + 2] - geo[LIFT]
@@ -71,7 +76,7 @@ def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
         for k in range(3):
             if abs(a_raw[idx[k]]) >= STILL_U:
                 still = False
-    stalled = (closed and still and ex * ex + ey * ey <= tol * tol and -tol <= dz <= p[ASSIST_M]
+    stalled = (closed and still and ex * ex + ey * ey <= tol * tol and -tol <= dz <= p[ASSIST_M] + widen
                and abs(geo[TGT + 2] - rest_z) <= SUPPORT_M)
     if stalled and mem[STALL] + 1.0 >= p[ASSIST_STEPS]:
         a_phys[g] = p[GRIPPER_OPEN]
@@ -91,15 +96,19 @@ def release_assist_commit(phase, geo, p, mem):
 
 CORRECTION = Correction("release_assist", PLACE, 1, release_assist, values={
     "ASSIST_M": lambda c, lay: c.release_assist_m, "ASSIST_STEPS": lambda c, lay: c.assist_steps,
-    "ASSIST_STILL_HAND": lambda c, lay: c.assist_still == "hand"},
+    "ASSIST_STILL_HAND": lambda c, lay: c.assist_still == "hand",
+    "ASSIST_ERROR_K": lambda c, lay: c.release_assist_error_k},
     on=lambda c: c.release_assist_m > 0.0 and c.place_rule == "release_veto", commit=release_assist_commit,
-    pose="judges 'on target' from the poses: off once pose_error_m > redirect_tol_m",
+    pose="judges 'on target' from the poses (within tol + release_assist_error_k x pose_error_m): off once "
+         "pose_error_m > redirect_tol_m",
     fields=(Field("release_assist_m", float, 0.04, 0.0, "open for a hold still over the target at most this above "
                   "it, m; 0 = off"),
             Field("assist_steps", int, 10, 10, "control steps a hold lasts before the release (and the lift) assist "
                   "acts"),
             Field("assist_still", str, "hand", "action", "what makes a hold still: action (the command) | hand (the "
-                  "end effector within 3 mm)")),
+                  "end effector within 3 mm)"),
+            Field("release_assist_error_k", float, 0.0, 0.0, "the release assist's on-target test widens by this many "
+                  "pose errors (tol + k pose_error_m); 0 = within tol alone")),
     check=lambda c: _check(c))
 
 ASSIST_STILL = ("action", "hand")
@@ -108,6 +117,8 @@ ASSIST_STILL = ("action", "hand")
 def _check(c) -> None:
     if c.assist_still not in ASSIST_STILL:
         raise ValueError(f"physvla: unknown assist_still {c.assist_still!r}; choose one of {', '.join(ASSIST_STILL)}")
+    if not c.release_assist_error_k >= 0:
+        raise ValueError(f"physvla: need release_assist_error_k >= 0, got {c.release_assist_error_k}")
     if not (c.release_assist_m >= 0 and c.assist_steps >= 1):
         raise ValueError(f"physvla: need release_assist_m >= 0 and assist_steps >= 1, got {c.release_assist_m}, "
                          f"{c.assist_steps}")
