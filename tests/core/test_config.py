@@ -21,7 +21,8 @@ def test_configurations_saved_before_load_as_they_were():
     """Files saved by earlier versions: a 0.1 postprocessor (most fields unknown then: they take the
     paper's values, what they meant), the presets and an arm's robot processor as saved before the
     configuration's defaults became the shipped default (tests/fixtures/saved_before_0_2): each is the preset as it
-    stood then, its distances fixed (geometry came later)."""
+    stood then, its distances fixed (geometry came later) and the release assist judging within its tolerance alone
+    (release_assist_error_k came later)."""
     import json
     from pathlib import Path
 
@@ -33,11 +34,12 @@ def test_configurations_saved_before_load_as_they_were():
     for name in ("default", "smooth", "paper"):
         saved = json.loads((fixtures / f"saved_before_0_2/preset_{name}/policy_postprocessor.json").read_text())
         assert PhysVLAConfig.from_dict(saved["steps"][-1]["config"]["config"]) == PRESETS[name].replace(
-            geometry="fixed"), name
+            geometry="fixed", release_assist_error_k=0.0), name
     robot = json.loads((fixtures / "saved_before_0_2/robot_arm_so101/physvla_robot_processor.json").read_text())
     step = robot["steps"][-1]
     assert step["class"].endswith("PhysVLARobotActionStep") and step["config"]["arm"] == "so101"
-    assert PhysVLAConfig.from_dict(step["config"]["config"]) == PRESETS["arm"].replace(geometry="fixed")
+    assert PhysVLAConfig.from_dict(step["config"]["config"]) == PRESETS["arm"].replace(geometry="fixed",
+                                                                                      release_assist_error_k=0.0)
 
 
 def test_the_papers_values():

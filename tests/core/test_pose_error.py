@@ -153,8 +153,8 @@ def test_the_gripper_veto_and_the_lift_threshold_widen_by_the_pose_error():
 
 def test_the_release_assist_widens_its_on_target_test_by_k_pose_errors_only_where_told():
     """release_assist_error_k: an object held still over the target but seen 2.7 cm off it (a 2 cm pose bias; the
-    tolerance is 2 cm) is let go with k = 1 and pose_error_m = 2 cm, not with k = 0, nor with k = 1 and no error
-    told, nor once the error passes the tolerance (the assist stands down)."""
+    tolerance is 2 cm) is let go with k = 1 (the presets') and pose_error_m = 2 cm, not with k = 0, nor with k = 1
+    and no error told, nor once the error passes the tolerance (the assist stands down)."""
     from lerobot_physvla.core.corrections.release_assist import ANCHOR, STALL
 
     (c,) = [c for c in CORRECTIONS if c.name == "release_assist"]
@@ -177,8 +177,9 @@ def test_the_release_assist_widens_its_on_target_test_by_k_pose_errors_only_wher
         c.kernel(held, out, idx, g, p, mem, True)
         return out[6] == -1.0
 
+    assert PhysVLAConfig().release_assist_error_k == 1.0  # every preset
     assert not opens()
-    assert not opens(pose_error_m=0.02)
+    assert not opens(pose_error_m=0.02, release_assist_error_k=0.0)
     assert opens(pose_error_m=0.02, release_assist_error_k=1.0)
     assert not opens(release_assist_error_k=1.0)
     assert not opens(pose_error_m=0.021, release_assist_error_k=1.0)  # beyond redirect_tol_m: it stands down

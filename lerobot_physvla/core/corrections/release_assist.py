@@ -11,7 +11,7 @@ paper; release_assist_m > 0, with place_rule=release_veto).
     e <= tol; beyond, it cannot tell on target from off it and leaves the gripper to the policy. With
     release_assist_error_k = k > 0 the test above takes tol + k e and h + k e in place of tol and h: an object
     held on target but seen up to k e off it (a biased pose: the object and the target each off by up to e)
-    still counts as on target; 0 (every preset) judges within tol alone.
+    still counts as on target (1 in every preset: eval/studies/pose_bias_assist.toml); 0 judges within tol alone.
 
 Traced failure (eval/results/learned_mid, docs/method.md): weak chunked ACTs carry the bowl to the
 plate, lower it to 1-4 cm above the plate's origin (or set it down on it) and then hold it there,
@@ -107,7 +107,7 @@ CORRECTION = Correction("release_assist", PLACE, 1, release_assist, values={
                   "acts"),
             Field("assist_still", str, "hand", "action", "what makes a hold still: action (the command) | hand (the "
                   "end effector within 3 mm)"),
-            Field("release_assist_error_k", float, 0.0, 0.0, "the release assist's on-target test widens by this many "
+            Field("release_assist_error_k", float, 1.0, 0.0, "the release assist's on-target test widens by this many "
                   "pose errors (tol + k pose_error_m); 0 = within tol alone")),
     check=lambda c: _check(c))
 
