@@ -32,8 +32,9 @@ PERCEPTION = "perception"  # a study configuration's perception faults (sources/
 
 def effective(config: dict) -> dict:
     """The configuration as it acts: a full PhysVLAConfig dict, with the low-pass's parameters reset when the
-    low-pass is off (they cannot change an action then), the NEUTRAL fields left out where neutral, and the
-    perception faults between the scene and the corrector (`perception`) where the study sets any."""
+    low-pass is off and release_assist_error_k when no pose error is told (they cannot change an action then), the
+    NEUTRAL fields left out where neutral, and the perception faults between the scene and the corrector
+    (`perception`) where the study sets any."""
     from lerobot_physvla.core.config import PhysVLAConfig
 
     config = dict(config)
@@ -42,6 +43,8 @@ def effective(config: dict) -> dict:
     if c.lowpass == "off":
         c = c.replace(lowpass_alpha_max=0.0, lowpass_rough_lo=0.0, lowpass_rough_hi=1.0, lowpass_phases="",
                       lowpass_space="action", lowpass_speed_hi=0.0, lowpass_rough="ema", lowpass_lag="trail")
+    if c.pose_error_told_m == 0.0:  # no pose error told: the release assist's widening by it cannot act
+        c = c.replace(release_assist_error_k=0.0)
     d = c.to_dict()
     for k, v in NEUTRAL.items():
         if d[k] == v:

@@ -120,6 +120,16 @@ def test_config_hash_ignores_low_pass_fields_only_while_the_low_pass_is_off():
     assert config_hash(off.to_dict()) != config_hash(off.replace(cap=0.1).to_dict())
 
 
+
+def test_config_hash_ignores_the_release_assists_pose_widening_only_while_no_pose_error_is_told():
+    exact = PhysVLAConfig()
+    assert config_hash(exact.to_dict()) == config_hash(exact.replace(release_assist_error_k=0.0).to_dict())
+    told = exact.replace(pose_error_m=0.02)
+    assert config_hash(told.to_dict()) != config_hash(told.replace(release_assist_error_k=0.0).to_dict())
+    filtered = exact.replace(pose_noise_m=0.01)  # the filter's residual is an error the corrections answer to
+    assert config_hash(filtered.to_dict()) != config_hash(filtered.replace(release_assist_error_k=0.0).to_dict())
+
+
 def test_a_backbone_name_keeps_one_meaning(tmp_path):
     s = Store(tmp_path)
     s.add_backbone("expert_jitter", {"expert": {"action_noise": 0.3}})
