@@ -126,6 +126,25 @@ def test_once_a_pull_has_ended_the_hand_that_comes_back_is_left_to_the_policy_un
         PhysVLAConfig(centre_guide_once=True)
 
 
+def test_a_pulled_hand_that_holds_its_height_is_let_go_until_the_object_is_lifted():
+    """centre_guide_yield_steps: MetaWorld's bin-picking policy hovered over the cube against the pull, open, for
+    75 steps, neither closing nor climbing out (docs/decisions/25-centre-guide.md). With n > 0 the pull lets go
+    once the pulled hand has gone down under 5 mm for n steps; a hand that keeps descending stays pulled."""
+    n = 4
+    hover = [0.05] * 20  # settles at step 5, pulled from then on, never lower
+    held, a, _ = _run(ON, (0.02, 0.0), heights=hover)
+    let, _, _ = _run(ON.replace(centre_guide_yield_steps=n), (0.02, 0.0), heights=hover)
+    assert (held[RIM_SETTLE_STEPS:, 0] < 0).all()
+    # pulled on the first step and n more (its height counted from the first), then the policy's to the end
+    np.testing.assert_array_equal(let[:RIM_SETTLE_STEPS + n + 1], held[:RIM_SETTLE_STEPS + n + 1])
+    np.testing.assert_array_equal(let[RIM_SETTLE_STEPS + n + 1:], np.tile(a, (20 - RIM_SETTLE_STEPS - n - 1, 1)))
+    descending = [0.09 - 0.006 * t for t in range(14)]  # 6 mm a step: never holds its height
+    went, _, _ = _run(ON.replace(centre_guide_yield_steps=n), (0.02, 0.0), heights=descending)
+    assert (went[RIM_SETTLE_STEPS:, 0] < 0).all()
+    with pytest.raises(ValueError, match="centre_guide_yield_steps is a count"):
+        PhysVLAConfig(centre_guide=True, centre_guide_yield_steps=-1)
+
+
 def test_it_never_pulls_on_a_rim_grasped_bowl_nor_without_a_measured_scene_nor_with_the_fixed_distances():
     """LIBERO-Spatial's objects are all bowls wider than the hand opens: the centre guide changes no action there."""
     assert slack(BOWL) < 0 and slack(CREAM_CHEESE) == pytest.approx(0.04 - 0.021)

@@ -21,6 +21,10 @@ across (beyond the paper; centre_guide). centre_guide_approach runs the same ker
     object is lifted: one pull per approach, so a policy that grasps beside the object on purpose and comes
     back to its own aim (MetaWorld's bin-picking policy, which climbs back up whenever it is held more than 2 cm
     from an aim beside the cube) is left to it.
+    yield (centre_guide_yield_steps = n > 0): a pulled hand that has not gone CENTRE_DROP_M lower than its lowest
+    point of the pull for n control steps, open, is let go until the object is lifted: a policy that holds still
+    against the pull, neither closing nor climbing out (MetaWorld's bin-picking policy hovering over the cube,
+    the shape expert whose descent stalls away from its own aim), is left to its aim.
     pose error (pose_error_m = e): the pull aims the hand at the object's pose, so e moves the grasp by up to e;
     it pulls only while e < span / 2 - w_o (CENTRE_SLACK_M: the room an open hand has on either side of the
     object across its narrower side), and leaves the hand to the policy beyond.
@@ -40,12 +44,16 @@ from lerobot_physvla.core.phase import APPROACH, GRASP
 # the pose error it tolerates, m: span / 2 - w_o for an object the hand closes across, -1 (no pull) for any other
 # or with no measured scene (core/geometry.py)
 # the fraction of the gap it commands a step (ActionLayout.step_gain); 1.0: one pull per approach (centre_guide_once)
-PARAMS = ("CENTRE_SLACK_M", "CENTRE_GAIN", "CENTRE_ONCE")
+# control steps a pulled hand may hold its height before the pull lets go (0: never)
+PARAMS = ("CENTRE_SLACK_M", "CENTRE_GAIN", "CENTRE_ONCE", "CENTRE_YIELD")
 # the hand's x, y (m) over the last RIM_SETTLE_STEPS committed steps; steps recorded so far; 1.0 while it pulls;
-# 1.0 once a pull has ended in this approach
-MEMORY = (("CENTRE_TRACK", 10), ("CENTRE_AT", 1), ("CENTRE_ON", 1), ("CENTRE_DONE", 1))
-CENTRE_SLACK_M, CENTRE_GAIN, CENTRE_ONCE = slots.params(__file__)
-CENTRE_TRACK, CENTRE_AT, CENTRE_ON, CENTRE_DONE = slots.memory(__file__)
+# 1.0 once a pull has ended in this approach; the hand's lowest z in this pull (m) and the steps since it went
+# CENTRE_DROP_M lower; 1.0 once a pull has let go (yield) in this approach
+MEMORY = (("CENTRE_TRACK", 10), ("CENTRE_AT", 1), ("CENTRE_ON", 1), ("CENTRE_DONE", 1), ("CENTRE_LOW", 1),
+          ("CENTRE_STILL", 1), ("CENTRE_LET", 1))
+CENTRE_SLACK_M, CENTRE_GAIN, CENTRE_ONCE, CENTRE_YIELD = slots.params(__file__)
+CENTRE_TRACK, CENTRE_AT, CENTRE_ON, CENTRE_DONE, CENTRE_LOW, CENTRE_STILL, CENTRE_LET = slots.memory(__file__)
+CENTRE_DROP_M = 0.005  # yield: a pulled hand that goes down less than this is holding its height, metres
 POSE = "aims the hand at the object's pose: no pull once pose_error_m >= span / 2 - the object's narrower half-extent"
 NO_PULL_M = -1.0  # CENTRE_SLACK_M where the object is not known to be grasped whole
 
@@ -55,7 +63,7 @@ def centre_guide(a_raw, a_phys, idx, geo, p, mem, commit):
     """x, y commanded onto the object's origin for an open hand settled beside an object it can close across
     (the approach and grasp phases); z and the gripper untouched."""
     dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
-    again = p[CENTRE_ONCE] < 0.5 or mem[CENTRE_DONE] < 0.5
+    again = (p[CENTRE_ONCE] < 0.5 or mem[CENTRE_DONE] < 0.5) and mem[CENTRE_LET] < 0.5
     on = (low_open and rho < p[RIM_REACH_M] and p[POSE_ERROR_M] < p[CENTRE_SLACK_M] and again
           and (mem[CENTRE_ON] > 0.5 or settled(geo, mem, CENTRE_TRACK, CENTRE_AT)))
     if on:
@@ -64,7 +72,22 @@ def centre_guide(a_raw, a_phys, idx, geo, p, mem, commit):
     if commit:
         if mem[CENTRE_ON] > 0.5 and not on:
             mem[CENTRE_DONE] = 1.0
+        if on:
+            _hold_height(geo, p, mem)
         mem[CENTRE_ON] = 1.0 if on else 0.0
+
+
+@njit(error_model="numpy")
+def _hold_height(geo, p, mem):
+    """Count the pulled steps since the hand last went CENTRE_DROP_M below its lowest point of this pull; let go
+    (CENTRE_LET) after CENTRE_YIELD of them."""
+    z = geo[EEF + 2]
+    if mem[CENTRE_ON] < 0.5 or z < mem[CENTRE_LOW] - CENTRE_DROP_M:
+        mem[CENTRE_LOW], mem[CENTRE_STILL] = z, 0.0
+    else:
+        mem[CENTRE_STILL] += 1.0
+    if p[CENTRE_YIELD] > 0.5 and mem[CENTRE_STILL] >= p[CENTRE_YIELD]:
+        mem[CENTRE_LET] = 1.0
 
 
 @njit(error_model="numpy")
@@ -74,20 +97,25 @@ def centre_guide_commit(phase, geo, p, mem):
     if phase != APPROACH and phase != GRASP:
         mem[CENTRE_ON] = 0.0
         mem[CENTRE_DONE] = 0.0
+        mem[CENTRE_LET] = 0.0
     track_hand(geo, mem, CENTRE_TRACK, CENTRE_AT)
 
 
 CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                         values={"CENTRE_SLACK_M": lambda c, lay: NO_PULL_M,
                                 "CENTRE_GAIN": lambda c, lay: lay.step_gain,
-                                "CENTRE_ONCE": lambda c, lay: float(c.centre_guide_once)},
+                                "CENTRE_ONCE": lambda c, lay: float(c.centre_guide_once),
+                                "CENTRE_YIELD": lambda c, lay: float(c.centre_guide_yield_steps)},
                         on=lambda c: c.centre_guide, commit=centre_guide_commit,
                         fields=(Field("centre_guide", bool, False, False, "an open hand settled low over an object "
                                       "it can close across is pulled onto the object's centre until it closes "
                                       "(geometry=scene; with the fixed distances it never pulls)"),
                                 Field("centre_guide_once", bool, False, False, "the centre guide pulls once per "
                                       "approach: a hand that leaves the zone or closes while pulled is left to the "
-                                      "policy until the object is lifted"),),
+                                      "policy until the object is lifted"),
+                                Field("centre_guide_yield_steps", int, 0, 0, "the centre guide lets go of a pulled, "
+                                      "open hand that has held its height (gone down under 5 mm) this many control "
+                                      "steps, until the object is lifted; 0: never"),),
                         check=lambda c: _check(c),
                         pose=POSE)
 
@@ -96,6 +124,9 @@ def _check(c) -> None:
     if c.centre_guide_once and not c.centre_guide:
         raise ValueError("physvla: centre_guide_once shapes the centre guide's pull: set centre_guide=true with it, "
                          "or leave it off")
+    if c.centre_guide_yield_steps < 0:
+        raise ValueError(f"physvla: centre_guide_yield_steps is a count of control steps (0: never yield); got "
+                         f"{c.centre_guide_yield_steps}")
     if c.centre_guide and c.action_layout.absolute:
         raise ValueError("physvla: centre_guide commands a delta layout's x, y; this layout's positions are "
                          "absolute targets: leave centre_guide off")
