@@ -50,6 +50,10 @@ STATE_RECIPES: dict[str, dict] = {
         "batch_size": 128, "steps": 40000, "save_every": 8000, "seed": 1000,
     },
 }
+# act_chunk_b128: the same policy and batch for 12,000 steps, a checkpoint every 2,000: sized to what a lent GPU's
+# 15 minutes leave (act_chunk_long ran 33-36 steps/s, two runs side by side on an H200: 15,400-16,000 steps in its
+# 7.5-min bound, eval/studies/learned_goal_ten_long_select.toml).
+STATE_RECIPES["act_chunk_b128"] = {**STATE_RECIPES["act_chunk_long"], "steps": 12000, "save_every": 2000}
 
 
 # ---------------------------------------------------------------- here: prepare, assemble

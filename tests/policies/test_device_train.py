@@ -37,6 +37,7 @@ def test_act_chunk_long_is_act_chunks_policy():
     assert diff == {}
     assert json.loads((committed / "recipe.json").read_text())["command"].count("--batch_size=32") == 1
     assert device_train.STATE_RECIPES["act_chunk_long"]["batch_size"] == 128
+    assert device_train.STATE_RECIPES["act_chunk_b128"]["policy"] == device_train.STATE_RECIPES["act_chunk_long"]["policy"]
 
 
 def test_chunk_index_clamps_and_pads_at_episode_ends():
