@@ -237,6 +237,16 @@ SUITE_CHOICE: dict[str, tuple[str, int]] = {
     # either band: each run's final one is kept, outside the band, and neither has a weaker sibling)
     "so101_act_single": ("so101_env/act_single", 20000),
     "so101_act_chunk": ("so101_env/act_chunk", 12000),
+    # The GPU's longer runs (backbones/device_train.py act_chunk_long, stopped by the lent time at two checkpoints
+    # each; eval/results/learned_goal_ten_long_select, init states 35-39, n = 30). LIBERO-Goal 80, 80 % (the later one;
+    # neither in the weak band); LIBERO-10 73, 97 % (97 % lies above the strong band, so step 8,000; no weak sibling)
+    "goal_act_chunk_long": ("libero_goal/act_chunk_long", 15415),
+    "ten_act_chunk_long": ("libero_10/act_chunk_long", 8000),
+}
+# The selection study of each device run (suite, recipe) -> (study, episodes per checkpoint, checkpoints it saved)
+DEVICE_SELECTION: dict[tuple[str, str], tuple[str, int, int]] = {
+    ("libero_goal", "act_chunk_long"): ("learned_goal_ten_long_select", 30, 2),
+    ("libero_10", "act_chunk_long"): ("learned_goal_ten_long_select", 30, 2),
 }
 
 

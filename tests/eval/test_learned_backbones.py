@@ -347,8 +347,8 @@ def test_the_kept_suite_acts_are_the_ones_the_rule_chose_on_their_selection_bloc
     """SUITE_CHOICE (which checkpoints are each suite's ACT backbones) must be what choose_suite gives on the
     uncorrected episodes its selection study recorded (every checkpoint; LIBERO-Object eval/results/
     suites_learned_select, n = 50; LIBERO-Goal and -10 eval/results/learned_goal_ten_select, n = 30; MetaWorld
-    eval/results/learned_metaworld_select, n = 60), not a hand pick; and each committed copy holds the weights
-    those episodes ran."""
+    eval/results/learned_metaworld_select, n = 60; the GPU's longer runs, DEVICE_SELECTION), not a hand pick; and
+    each committed copy holds the weights those episodes ran."""
     import hashlib
 
     from store import Store
@@ -356,31 +356,33 @@ def test_the_kept_suite_acts_are_the_ones_the_rule_chose_on_their_selection_bloc
 
     checked = 0
     assert set(SELECTION) == set(train_backbones.SUITE_SHORT)
-    for suite, short in train_backbones.SUITE_SHORT.items():
-        study, n = SELECTION[suite]
+    runs = [(suite, recipe, *SELECTION[suite], train_backbones.CHECKPOINTS_PER_RUN)
+            for suite in train_backbones.SUITE_SHORT for recipe in train_backbones.SUITE_RECIPES]
+    runs += [(suite, recipe, *sel) for (suite, recipe), sel in train_backbones.DEVICE_SELECTION.items()]
+    for suite, recipe, study, n, n_checkpoints in runs:
+        short = train_backbones.SUITE_SHORT[suite]
         selection = Study(find(study))  # its `baseline`, in each block's scene (MetaWorld's has its own layout)
         uncorrected = {selection.config_hash("baseline", bl.scene) for bl in selection.blocks.values()}
         data = Store(ROOT / "eval/results" / study)
-        for recipe in train_backbones.SUITE_RECIPES:
-            rate, sha = {}, {}
-            for r in data.rows:
-                name, _, step = r["backbone"].partition("@")
-                if r["config"] in uncorrected and name == f"{short}_{recipe}":
-                    rate.setdefault(int(step), []).append(r["success"])
-                    sha[int(step)] = data.meta["backbones"][r["backbone"]]["policy_sha256"]
-            if not rate:  # this suite's ACTs are not trained yet: no backbone of theirs may be named
-                assert not any(k.startswith(f"{short}_{recipe}") for k in train_backbones.SUITE_CHOICE)
-                continue
-            assert len(rate) == train_backbones.CHECKPOINTS_PER_RUN and all(len(v) == n for v in rate.values())
-            strong, weak = train_backbones.choose_suite({s: float(np.mean(v)) for s, v in rate.items()})
-            kept = {f"{short}_{recipe}": strong} | ({f"{short}_{recipe}_weak": weak} if weak is not None else {})
-            for name, step in kept.items():
-                assert train_backbones.SUITE_CHOICE[name] == (f"{suite}/{recipe}", step), name
-                committed = train_backbones.COMMITTED / name / "model.safetensors"
-                assert hashlib.sha256(committed.read_bytes()).hexdigest() == sha[step], name
-                checked += 1
-            if weak is None:
-                assert f"{short}_{recipe}_weak" not in train_backbones.SUITE_CHOICE
+        rate, sha = {}, {}
+        for r in data.rows:
+            name, _, step = r["backbone"].partition("@")
+            if r["config"] in uncorrected and name == f"{short}_{recipe}":
+                rate.setdefault(int(step), []).append(r["success"])
+                sha[int(step)] = data.meta["backbones"][r["backbone"]]["policy_sha256"]
+        if not rate:  # this suite's ACTs are not trained yet: no backbone of theirs may be named
+            assert not any(k in (f"{short}_{recipe}", f"{short}_{recipe}_weak") for k in train_backbones.SUITE_CHOICE)
+            continue
+        assert len(rate) == n_checkpoints and all(len(v) == n for v in rate.values()), (suite, recipe)
+        strong, weak = train_backbones.choose_suite({s: float(np.mean(v)) for s, v in rate.items()})
+        kept = {f"{short}_{recipe}": strong} | ({f"{short}_{recipe}_weak": weak} if weak is not None else {})
+        for name, step in kept.items():
+            assert train_backbones.SUITE_CHOICE[name] == (f"{suite}/{recipe}", step), name
+            committed = train_backbones.COMMITTED / name / "model.safetensors"
+            assert hashlib.sha256(committed.read_bytes()).hexdigest() == sha[step], name
+            checked += 1
+        if weak is None:
+            assert f"{short}_{recipe}_weak" not in train_backbones.SUITE_CHOICE
     assert checked >= 2  # LIBERO-Object's two recipes at least
 
 
