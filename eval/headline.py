@@ -188,9 +188,10 @@ SUITES = {"object": "LIBERO-Object", "goal": "LIBERO-Goal", "ten": "LIBERO-10",
 # the scripted teacher's study, the ACTs distilled from it, the image-input ACT (eval/studies/image_act.toml), the
 # centre guide's confirmation blocks (eval/studies/centre_guide.toml: the option `centre_guide` beside the shipped
 # default, docs/decisions/25-centre-guide.md), the ACTs distilled from MetaWorld's own scripted policies, and
-# lerobot-env-so101's pick-and-place controller with the ACTs distilled from it
-SUITE_STUDIES = ("suites", "suites_learned", "learned_goal_ten", "image_act", "centre_guide", "learned_metaworld",
-                 "learned_so101")
+# lerobot-env-so101's pick-and-place controller with the ACTs distilled from it; the ACTs trained longer on a lent GPU
+# and the single-step MetaWorld ACT (each row joins once its block has run)
+SUITE_STUDIES = ("suites", "suites_learned", "learned_goal_ten", "learned_goal_ten_long", "image_act", "centre_guide",
+                 "learned_metaworld", "learned_metaworld_single", "learned_so101", "learned_so101_b128")
 BEFORE, NOW = "shipped default", "default + centre guide"
 
 
@@ -204,8 +205,8 @@ def _vs_baseline(rows: list[dict], base: list[dict]) -> str:
 def suites_table() -> list[str]:
     """Baseline, the shipped default (as frozen at 519c8932 for the pre-registered test) and the shipped default with
     `centre_guide=true` on the other LIBERO suites, MetaWorld and the SO-101 (eval/studies/suites.toml,
-    suites_learned.toml, learned_goal_ten.toml, image_act.toml, centre_guide.toml, learned_metaworld.toml,
-    learned_so101.toml): success,
+    suites_learned.toml, learned_goal_ten.toml, learned_goal_ten_long.toml, image_act.toml, centre_guide.toml,
+    learned_metaworld.toml, learned_metaworld_single.toml, learned_so101.toml, learned_so101_b128.toml): success,
     and the paired difference against baseline [95 % CI]; "-" where a configuration did not run on a block."""
     lines = ["| suite (tasks, init states) | policy | baseline | shipped default | with `centre_guide=true` |",
              "|---|---|---|---|---|"]
