@@ -79,6 +79,28 @@ def test_on_a_layout_whose_target_the_hand_trails_the_pull_commands_the_layouts_
         ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, step_gain=1.5)
 
 
+def test_with_centre_guide_trailing_off_a_trailing_target_layout_gets_no_pull_and_an_osc_one_keeps_it():
+    """centre_guide_trailing = False leaves a layout whose step_gain is below 1 (MetaWorld's mocap) to the policy:
+    every action as with the guide off, the two corrections inactive; LIBERO's OSC (step_gain 1) is pulled as
+    before."""
+    from lerobot_physvla.core.corrections import active
+
+    xy = (0.004, -0.002)
+    mw = dict(layout="metaworld", weighting="task_space")
+    no_trail = ON.replace(centre_guide_trailing=False, **mw)
+    assert not {"centre_guide", "centre_guide_approach"} & active(no_trail)
+    assert {"centre_guide", "centre_guide_approach"} <= active(ON.replace(**mw))
+    got, _, _ = _run(no_trail, xy)
+    want, _, _ = _run(OFF.replace(**mw), xy)
+    np.testing.assert_array_equal(got, want)
+    pulled, _, _ = _run(ON.replace(**mw), xy)
+    assert not np.array_equal(pulled, want)  # the same hand is pulled where trailing targets are allowed
+    osc, _, _ = _run(ON.replace(centre_guide_trailing=False), (0.02, -0.015))
+    osc_on, _, _ = _run(ON, (0.02, -0.015))
+    np.testing.assert_array_equal(osc, osc_on)
+    assert not np.array_equal(osc, _run(OFF, (0.02, -0.015))[0])
+
+
 @pytest.mark.parametrize("xy, phase", [((0.02, -0.015), Phase.GRASP), ((0.05, 0.0), Phase.APPROACH)])
 def test_a_settled_open_hand_beside_a_box_it_closes_across_is_pulled_onto_its_origin_in_x_y_only(xy, phase):
     """The traced failure: the jittery expert aims its grasp beside a box (2.5 cm off: within delta_grasp, the grasp

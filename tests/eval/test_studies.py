@@ -132,6 +132,21 @@ def test_config_hash_ignores_the_release_assists_pose_widening_only_while_no_pos
     assert config_hash(filtered.to_dict()) != config_hash(filtered.replace(release_assist_error_k=0.0).to_dict())
 
 
+def test_config_hash_sees_centre_guide_trailing_only_where_it_can_change_an_action():
+    """centre_guide_trailing acts only with the guide on a layout whose step gain is below 1 (MetaWorld's mocap);
+    there, off, the configuration is the guide off (the same episodes)."""
+    guide = PhysVLAConfig(centre_guide=True)
+    assert config_hash(guide.to_dict()) == config_hash(guide.replace(centre_guide_trailing=False).to_dict())
+    off = PhysVLAConfig()
+    assert config_hash(off.to_dict()) == config_hash(off.replace(centre_guide_trailing=False).to_dict())
+    mw = dict(layout="metaworld", weighting="task_space")
+    assert config_hash(guide.replace(**mw).to_dict()) != config_hash(off.replace(**mw).to_dict())
+    kept_off = guide.replace(centre_guide_trailing=False, **mw)
+    assert config_hash(kept_off.to_dict()) == config_hash(off.replace(**mw).to_dict())
+    once = kept_off.replace(centre_guide_once=True, centre_guide_yield_steps=10)
+    assert config_hash(once.to_dict()) == config_hash(off.replace(**mw).to_dict())
+
+
 def test_a_backbone_name_keeps_one_meaning(tmp_path):
     s = Store(tmp_path)
     s.add_backbone("expert_jitter", {"expert": {"action_noise": 0.3}})

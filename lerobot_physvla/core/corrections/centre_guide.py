@@ -25,6 +25,9 @@ across (beyond the paper; centre_guide). centre_guide_approach runs the same ker
     point of the pull for n control steps, open, is let go until the object is lifted: a policy that holds still
     against the pull, neither closing nor climbing out (MetaWorld's bin-picking policy hovering over the cube,
     the shape expert whose descent stalls away from its own aim), is left to its aim.
+    trailing targets (centre_guide_trailing = False): no pull at all on a layout whose step_gain is below 1 (an
+    action that moves a target the hand trails, MetaWorld's mocap), where a pull at the step gain never centred a
+    hand whose policy kept commanding its own aim (docs/decisions/25-centre-guide.md); the guide is then off.
     pose error (pose_error_m = e): the pull aims the hand at the object's pose, so e moves the grasp by up to e;
     it pulls only while e < span / 2 - w_o (CENTRE_SLACK_M: the room an open hand has on either side of the
     object across its narrower side), and leaves the hand to the policy beyond.
@@ -56,6 +59,12 @@ CENTRE_TRACK, CENTRE_AT, CENTRE_ON, CENTRE_DONE, CENTRE_LOW, CENTRE_STILL, CENTR
 CENTRE_DROP_M = 0.005  # yield: a pulled hand that goes down less than this is holding its height, metres
 POSE = "aims the hand at the object's pose: no pull once pose_error_m >= span / 2 - the object's narrower half-extent"
 NO_PULL_M = -1.0  # CENTRE_SLACK_M where the object is not known to be grasped whole
+
+
+def pulls(c) -> bool:
+    """Whether the centre guide acts under configuration c: on, and on a layout the action sets the step's goal
+    from the hand (step_gain 1) unless centre_guide_trailing lets it pull a trailing target too."""
+    return bool(c.centre_guide and (c.centre_guide_trailing or c.action_layout.step_gain >= 1.0))
 
 
 @njit(error_model="numpy")
@@ -106,7 +115,7 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                                 "CENTRE_GAIN": lambda c, lay: lay.step_gain,
                                 "CENTRE_ONCE": lambda c, lay: float(c.centre_guide_once),
                                 "CENTRE_YIELD": lambda c, lay: float(c.centre_guide_yield_steps)},
-                        on=lambda c: c.centre_guide, commit=centre_guide_commit,
+                        on=pulls, commit=centre_guide_commit,
                         fields=(Field("centre_guide", bool, False, False, "an open hand settled low over an object "
                                       "it can close across is pulled onto the object's centre until it closes "
                                       "(geometry=scene; with the fixed distances it never pulls)"),
@@ -115,7 +124,10 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                                       "policy until the object is lifted"),
                                 Field("centre_guide_yield_steps", int, 0, 0, "the centre guide lets go of a pulled, "
                                       "open hand that has held its height (gone down under 5 mm) this many control "
-                                      "steps, until the object is lifted; 0: never"),),
+                                      "steps, until the object is lifted; 0: never"),
+                                Field("centre_guide_trailing", bool, True, True, "the centre guide also pulls "
+                                      "where the action moves a target the hand trails (a layout step_gain below "
+                                      "1, MetaWorld's mocap), at that gain; false: it is off on such a layout"),),
                         check=lambda c: _check(c),
                         pose=POSE)
 

@@ -3,7 +3,7 @@ phase, for a hand settled beside an object it can close across but outside delta
 than the object's radius and a pad)."""
 
 from lerobot_physvla.core.corrections.base import Correction
-from lerobot_physvla.core.corrections.centre_guide import POSE, centre_guide
+from lerobot_physvla.core.corrections.centre_guide import POSE, centre_guide, pulls
 from lerobot_physvla.core.phase import APPROACH
 
-CORRECTION = Correction("centre_guide_approach", APPROACH, 1, centre_guide, on=lambda c: c.centre_guide, pose=POSE)
+CORRECTION = Correction("centre_guide_approach", APPROACH, 1, centre_guide, on=pulls, pose=POSE)
