@@ -39,7 +39,7 @@ EPISODES = {"table2": 600, "ablation": 350, "place_bias": 60, "lift_sweep": 420,
             "learned_metaworld_select": 300, "learned_metaworld": 480, "centre_guide_once": 1508,
             "learned_so101_select": 500, "learned_so101": 1000, "pose_bias_assist": 800,
             "centre_guide_yield": 3274, "learned_goal_ten_long_select": 120,
-            "learned_goal_ten_long": 324}
+            "learned_goal_ten_long": 324, "centre_guide_step_gain": 744}
 
 
 def test_every_study_readme_is_what_its_data_gives():
