@@ -14,6 +14,10 @@ import pytest
 from lerobot_physvla._moved import MOVED
 
 ROOT = Path(__file__).resolve().parents[1]
+
+# what a configuration saved before these fields existed holds for them (the paper's values: how it acted then):
+# fixed distances, the release assist within its tolerance alone, no centre guide
+BEFORE = dict(geometry="fixed", release_assist_error_k=0.0, centre_guide=False, centre_guide_trailing=True)
 FIXTURE = ROOT / "tests/fixtures/postprocessor_v0_1"  # written by lerobot-physvla-config before the move
 
 
@@ -92,7 +96,7 @@ def test_the_committed_preset_files_hold_the_presets_of_this_code():
 def test_pipelines_saved_before_the_defaults_changed_load_through_lerobot():
     """lerobot's own loaders rebuild the saved steps (tests/fixtures/saved_before_0_2) with the same
     configurations they were saved with (their distances fixed: geometry came later; the release assist within its
-    tolerance alone: release_assist_error_k came later)."""
+    tolerance alone: release_assist_error_k came later; no centre guide: it joined the default later)."""
     from lerobot.processor import PolicyProcessorPipeline, RobotProcessorPipeline
     from lerobot.processor.converters import (policy_action_to_transition, robot_action_observation_to_transition,
                                               transition_to_policy_action, transition_to_robot_action)
@@ -104,10 +108,9 @@ def test_pipelines_saved_before_the_defaults_changed_load_through_lerobot():
         p = PolicyProcessorPipeline.from_pretrained(saved / f"preset_{name}", config_filename="policy_postprocessor.json",
                                                     to_transition=policy_action_to_transition,
                                                     to_output=transition_to_policy_action)
-        assert p.steps[-1].cfg == PRESETS[name].replace(geometry="fixed", release_assist_error_k=0.0), name
+        assert p.steps[-1].cfg == PRESETS[name].replace(**BEFORE), name
     r = RobotProcessorPipeline.from_pretrained(saved / "robot_arm_so101", config_filename="physvla_robot_processor.json",
                                                to_transition=robot_action_observation_to_transition,
                                                to_output=transition_to_robot_action)
-    assert PhysVLAConfig.from_dict(r.steps[-1].config) == PRESETS["arm"].replace(geometry="fixed",
-                                                                                  release_assist_error_k=0.0)
+    assert PhysVLAConfig.from_dict(r.steps[-1].config) == PRESETS["arm"].replace(**BEFORE)
     assert r.steps[-1].arm == "so101"

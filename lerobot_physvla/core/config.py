@@ -421,10 +421,10 @@ PRESETS: dict[str, PhysVLAConfig] = {
 # speed (eval/results/so101_faults), so it stays off on arms until a rule that knows the object's
 # speed and height is measured. The lift assist (candidate 15) and the rim guide (candidate 18) are off
 # there too: they were measured on LIBERO's delta-pose arm and its bowls only, and they would move the
-# arm with the grasp and approach phases' authority.
+# arm with the grasp and approach phases' authority; so is the centre guide, measured in simulation only.
 PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), place_rule="decelerate",
                                             release_assist_m=0.0, lift_assist_u=0.0, lift_assist_at_rest=False,
-                                            rim_guide_m=0.0, beta=0.5)
+                                            rim_guide_m=0.0, centre_guide=False, beta=0.5)
 # for a policy that shakes: the default + a low-pass before and after the carry whose strength follows
 # the policy's own measured roughness (the median of its last 9 second differences), so a policy that
 # does not shake is left alone (candidate 14's settings). On blocks no decision about it looked at

@@ -22,7 +22,8 @@ from lerobot_physvla.core.state import SCENE, PhysState, field_offsets
 # Panda's span and pads, m
 BOWL = (0.05389, 0.05350, 0.05213, 0.06873, 0.08, 0.008, 0.008)  # LIBERO-Spatial's akita bowl on its plate
 CREAM_CHEESE = (0.041, 0.021, 0.009, 0.06, 0.08, 0.008, 0.008)  # LIBERO-Goal task 6's box into a bowl
-ON = PRESETS["default"].replace(centre_guide=True)
+# the pull on every layout (the shipped default keeps it off MetaWorld's: centre_guide_trailing = False)
+ON = PRESETS["default"].replace(centre_guide=True, centre_guide_trailing=True)
 OFF = PRESETS["default"].replace(centre_guide=False)
 
 
@@ -145,7 +146,7 @@ def test_once_a_pull_has_ended_the_hand_that_comes_back_is_left_to_the_policy_un
     assert (again[15 + RIM_SETTLE_STEPS:, 0] < 0).all()  # pulled again
     np.testing.assert_array_equal(once[15:], np.tile(a, (12, 1)))  # left to the policy
     with pytest.raises(ValueError, match="centre_guide_once shapes the centre guide"):
-        PhysVLAConfig(centre_guide_once=True)
+        PhysVLAConfig(centre_guide=False, centre_guide_once=True)
 
 
 def test_a_pulled_hand_that_holds_its_height_is_let_go_until_the_object_is_lifted():
@@ -193,6 +194,8 @@ def test_the_configuration_refuses_what_it_cannot_do_and_old_configurations_load
         PhysVLAConfig(centre_guide=True, layout=ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, absolute=True),
                       rim_guide_m=0.0, lift_assist_u=0.0)
     assert not PhysVLAConfig.paper().centre_guide and not PRESETS["arm"].centre_guide
+    c = PhysVLAConfig()  # the shipped default since eval/studies/centre_guide_step_gain.toml: on, off MetaWorld's mocap
+    assert c.centre_guide and not c.centre_guide_trailing and not c.centre_guide_once
     d = ON.to_dict()
-    del d["centre_guide"]
-    assert PhysVLAConfig.from_dict(d) == OFF  # saved before it existed: as it acted then
+    del d["centre_guide"], d["centre_guide_trailing"]
+    assert PhysVLAConfig.from_dict(d) == ON.replace(centre_guide=False)  # saved before they existed: as it acted then

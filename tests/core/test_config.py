@@ -2,6 +2,10 @@ import pytest
 
 from lerobot_physvla.core.config import FETCH_4D, LIBERO_OSC_POSE, ActionLayout, PhysVLAConfig
 
+# what a configuration saved before these fields existed holds for them (the paper's values: how it acted then):
+# fixed distances, the release assist within its tolerance alone, no centre guide
+BEFORE = dict(geometry="fixed", release_assist_error_k=0.0, centre_guide=False, centre_guide_trailing=True)
+
 
 def test_the_one_constructor_is_what_the_flag_applies():
     """PhysVLAConfig() is the shipped default: what --policy.postprocess=physvla applies (no other flag), what
@@ -22,7 +26,7 @@ def test_configurations_saved_before_load_as_they_were():
     paper's values, what they meant), the presets and an arm's robot processor as saved before the
     configuration's defaults became the shipped default (tests/fixtures/saved_before_0_2): each is the preset as it
     stood then, its distances fixed (geometry came later) and the release assist judging within its tolerance alone
-    (release_assist_error_k came later)."""
+    (release_assist_error_k came later), no centre guide (it joined the default later)."""
     import json
     from pathlib import Path
 
@@ -33,13 +37,11 @@ def test_configurations_saved_before_load_as_they_were():
     assert PhysVLAConfig.from_dict(old["steps"][0]["config"]["config"]) == PhysVLAConfig.paper()
     for name in ("default", "smooth", "paper"):
         saved = json.loads((fixtures / f"saved_before_0_2/preset_{name}/policy_postprocessor.json").read_text())
-        assert PhysVLAConfig.from_dict(saved["steps"][-1]["config"]["config"]) == PRESETS[name].replace(
-            geometry="fixed", release_assist_error_k=0.0), name
+        assert PhysVLAConfig.from_dict(saved["steps"][-1]["config"]["config"]) == PRESETS[name].replace(**BEFORE), name
     robot = json.loads((fixtures / "saved_before_0_2/robot_arm_so101/physvla_robot_processor.json").read_text())
     step = robot["steps"][-1]
     assert step["class"].endswith("PhysVLARobotActionStep") and step["config"]["arm"] == "so101"
-    assert PhysVLAConfig.from_dict(step["config"]["config"]) == PRESETS["arm"].replace(geometry="fixed",
-                                                                                      release_assist_error_k=0.0)
+    assert PhysVLAConfig.from_dict(step["config"]["config"]) == PRESETS["arm"].replace(**BEFORE)
 
 
 def test_the_papers_values():

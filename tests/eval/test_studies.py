@@ -83,14 +83,24 @@ def test_recorded_verdicts_are_what_the_declared_rules_give():
 
 def test_the_presets_are_the_configurations_that_were_measured():
     """The efficacy study measured the presets with their fixed distances; the shipped default measures them on the
-    scene (geometry = "scene"), which eval/studies/geometry_scene.toml confirmed against the fixed ones."""
+    scene (geometry = "scene"), which eval/studies/geometry_scene.toml confirmed against the fixed ones; the centre
+    guide joined it after eval/studies/centre_guide_step_gain.toml's confirmation."""
+    before = dict(centre_guide=False)  # the centre guide joined the default after these studies
     s = Study(study_mod.find("efficacy"))
-    assert s.config_hash(headline.SHIPPED) == config_hash(PRESETS["default"].replace(geometry="fixed").to_dict())
-    assert s.config_hash(headline.SMOOTH) == config_hash(PRESETS["smooth"].replace(geometry="fixed").to_dict())
+    assert s.config_hash(headline.SHIPPED) == config_hash(PRESETS["default"].replace(geometry="fixed", **before).to_dict())
+    assert s.config_hash(headline.SMOOTH) == config_hash(PRESETS["smooth"].replace(geometry="fixed", **before).to_dict())
     g = Study(study_mod.find("geometry_scene"))
-    assert g.config_hash("default, scene distances") == config_hash(PRESETS["default"].to_dict())
+    assert g.config_hash("default, scene distances") == config_hash(PRESETS["default"].replace(**before).to_dict())
     (c,) = g.compares
     assert report.compare_verdict(g, report.Rows(g, run.rows_of(g)), c, "confirm") is True
+    # the centre guide, kept off trailing-target layouts, joined the default after its confirmation; it pulls on no
+    # bowl (tests/core/test_centre_guide.py), so LIBERO-Spatial's measurements of the default without it stand
+    y = Study(study_mod.find("centre_guide_step_gain"))
+    for scene in ("libero_goal", "metaworld", "so101_env"):
+        assert y.config_hash("step gain 1", scene) == config_hash(y.config("shipped default", scene) | {
+            k: v for k, v in PRESETS["default"].to_dict().items() if k.startswith("centre_guide")}), scene
+    (c,) = y.compares
+    assert report.compare_verdict(y, report.Rows(y, run.rows_of(y)), c, "confirm") is True
 
 
 # ---------------------------------------------------------------------------------------------- store
@@ -135,9 +145,9 @@ def test_config_hash_ignores_the_release_assists_pose_widening_only_while_no_pos
 def test_config_hash_sees_centre_guide_trailing_only_where_it_can_change_an_action():
     """centre_guide_trailing acts only with the guide on a layout whose step gain is below 1 (MetaWorld's mocap);
     there, off, the configuration is the guide off (the same episodes)."""
-    guide = PhysVLAConfig(centre_guide=True)
+    guide = PhysVLAConfig(centre_guide=True, centre_guide_trailing=True)
     assert config_hash(guide.to_dict()) == config_hash(guide.replace(centre_guide_trailing=False).to_dict())
-    off = PhysVLAConfig()
+    off = PhysVLAConfig(centre_guide=False)
     assert config_hash(off.to_dict()) == config_hash(off.replace(centre_guide_trailing=False).to_dict())
     mw = dict(layout="metaworld", weighting="task_space")
     assert config_hash(guide.replace(**mw).to_dict()) != config_hash(off.replace(**mw).to_dict())

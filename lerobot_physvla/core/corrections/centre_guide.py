@@ -116,7 +116,7 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                                 "CENTRE_ONCE": lambda c, lay: float(c.centre_guide_once),
                                 "CENTRE_YIELD": lambda c, lay: float(c.centre_guide_yield_steps)},
                         on=pulls, commit=centre_guide_commit,
-                        fields=(Field("centre_guide", bool, False, False, "an open hand settled low over an object "
+                        fields=(Field("centre_guide", bool, True, False, "an open hand settled low over an object "
                                       "it can close across is pulled onto the object's centre until it closes "
                                       "(geometry=scene; with the fixed distances it never pulls)"),
                                 Field("centre_guide_once", bool, False, False, "the centre guide pulls once per "
@@ -125,7 +125,7 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                                 Field("centre_guide_yield_steps", int, 0, 0, "the centre guide lets go of a pulled, "
                                       "open hand that has held its height (gone down under 5 mm) this many control "
                                       "steps, until the object is lifted; 0: never"),
-                                Field("centre_guide_trailing", bool, True, True, "the centre guide also pulls "
+                                Field("centre_guide_trailing", bool, False, True, "the centre guide also pulls "
                                       "where the action moves a target the hand trails (a layout step_gain below "
                                       "1, MetaWorld's mocap), at that gain; false: it is off on such a layout"),),
                         check=lambda c: _check(c),
