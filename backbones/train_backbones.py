@@ -233,6 +233,9 @@ SUITE_CHOICE: dict[str, tuple[str, int]] = {
     # final one in the strong band; of the two at 30 %, equally near 35 %, the earlier)
     "mw_act_chunk": ("metaworld/act_chunk", 12000),
     "mw_act_chunk_weak": ("metaworld/act_chunk", 2400),
+    # act_single (the same block, seeds 140-149, n = 60; trained here): 58, 65, 53, 68, 75 % (the final one in the strong
+    # band; none in the weak band, so no weaker sibling)
+    "mw_act_single": ("metaworld/act_single", 20000),
     # SO-101 (eval/results/learned_so101_select, seeds 300-349, n = 50): every checkpoint of both recipes 0 % (none in
     # either band: each run's final one is kept, outside the band, and neither has a weaker sibling)
     "so101_act_single": ("so101_env/act_single", 20000),
