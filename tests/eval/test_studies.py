@@ -36,10 +36,11 @@ EPISODES = {"table2": 600, "ablation": 350, "place_bias": 60, "lift_sweep": 420,
             "image_act": 100, "pose_filter": 1050, "pose_filter_arms": 600, "pose_bias_split": 100,
             "centre_guide": 1324, "centre_guide_arms": 424, "centre_guide_mocap": 684,
             "learned_goal_ten_select": 300, "learned_goal_ten": 648,
-            "learned_metaworld_select": 300, "learned_metaworld": 480, "centre_guide_once": 1508,
+            "learned_metaworld_select": 600, "learned_metaworld": 480, "centre_guide_once": 1508,
             "learned_so101_select": 500, "learned_so101": 1000, "pose_bias_assist": 800,
             "centre_guide_yield": 3274, "learned_goal_ten_long_select": 120,
-            "learned_goal_ten_long": 324, "centre_guide_step_gain": 744}
+            "learned_goal_ten_long": 324, "centre_guide_step_gain": 744,
+            "learned_metaworld_single": 240}
 
 
 def test_every_study_readme_is_what_its_data_gives():
