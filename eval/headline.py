@@ -199,14 +199,15 @@ BEFORE, NOW = "shipped default", "default + centre guide"
 
 def _default_now(study: Study, scene: str) -> str | None:
     """Which of the study's configurations the shipped default of this code is on `scene`: BEFORE where the centre
-    guide cannot act there (MetaWorld's mocap), NOW where it can, None where neither is."""
+    guide cannot act there (MetaWorld's mocap), NOW where it can, else any configuration of the study that is it;
+    None where none is."""
     from lerobot_physvla.core.config import PRESETS
 
     from store import config_hash
 
     guide = {k: v for k, v in PRESETS["default"].to_dict().items() if k.startswith("centre_guide")}
     now = config_hash({**study.config(BEFORE, scene), **guide})
-    for name in (BEFORE, NOW):
+    for name in (BEFORE, NOW, *study.config_specs):
         if name in study.config_specs and study.config_hash(name, scene) == now:
             return name
     return None
