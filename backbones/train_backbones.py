@@ -245,11 +245,18 @@ SUITE_CHOICE: dict[str, tuple[str, int]] = {
     # neither in the weak band); LIBERO-10 73, 97 % (97 % lies above the strong band, so step 8,000; no weak sibling)
     "goal_act_chunk_long": ("libero_goal/act_chunk_long", 15415),
     "ten_act_chunk_long": ("libero_10/act_chunk_long", 8000),
+    # The SO-101's act_chunk_b128 (device_train.py's recipe run on this CPU, no device drawn; stopped by its 110-min
+    # bound at 8,789 steps; eval/results/learned_so101_b128_select, seeds 300-349, n = 50): 0, 12, 58, 24, 36 % (none in
+    # the strong band: the final one is kept, outside it; the weaker sibling step 8,000, the other one in the weak band)
+    "so101_act_chunk_b128": ("so101_env/act_chunk_b128", 8789),
+    "so101_act_chunk_b128_weak": ("so101_env/act_chunk_b128", 8000),
 }
-# The selection study of each device run (suite, recipe) -> (study, episodes per checkpoint, checkpoints it saved)
+# The selection study of each device_train.py run (suite, recipe; on a lent GPU, or on this CPU where none was
+# drawn) -> (study, episodes per checkpoint, checkpoints it saved)
 DEVICE_SELECTION: dict[tuple[str, str], tuple[str, int, int]] = {
     ("libero_goal", "act_chunk_long"): ("learned_goal_ten_long_select", 30, 2),
     ("libero_10", "act_chunk_long"): ("learned_goal_ten_long_select", 30, 2),
+    ("so101_env", "act_chunk_b128"): ("learned_so101_b128_select", 50, 5),
 }
 
 
