@@ -40,7 +40,8 @@ EPISODES = {"table2": 600, "ablation": 350, "place_bias": 60, "lift_sweep": 420,
             "learned_so101_select": 500, "learned_so101": 1000, "pose_bias_assist": 800,
             "centre_guide_yield": 3274, "learned_goal_ten_long_select": 120,
             "learned_goal_ten_long": 324, "centre_guide_step_gain": 744,
-            "learned_metaworld_single": 240, "veto_close_lead": 860}
+            "learned_metaworld_single": 240, "veto_close_lead": 860,
+            "learned_so101_b128_select": 250, "learned_so101_b128": 500}
 
 
 def test_every_study_readme_is_what_its_data_gives():
