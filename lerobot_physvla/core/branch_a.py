@@ -39,7 +39,7 @@ from lerobot_physvla.core.corrections.base import (D_OBJ_XY, D_TGT_XY, EEF, FING
                                                    PHASE_REF_OBJECT, POSE_MAX_AGE, POSE_NOISE_M, TGT)
 from lerobot_physvla.core.corrections.release_veto import RELEASE_CARRY, carried_phase
 from lerobot_physvla.core.corrections.temporal_ema import temporal_ema
-from lerobot_physvla.core.geometry import measured, scene_distances
+from lerobot_physvla.core.geometry import N_SCENE, measured, scene_distances
 from lerobot_physvla.core.phase import PHASE_NAMES, phase_of
 from lerobot_physvla.core.pose_filter import pose_filter
 from lerobot_physvla.core.state import (INVALID_STATE, MISSING_POSE, NONFINITE_ACTION, NONFINITE_STATE, OK,
@@ -189,7 +189,12 @@ def _compile(key: int):
             v_z = 0.0  # the end-effector's vertical velocity, J_pos[2] . qdot (m/s; 0 for a state without dynamics)
             for j in range(o[13]):
                 v_z += row[o[12] + 2 * o[13] + j] * row[o[8] + j]
-            geo[i, 6] = timed_close(a_raw[i], idx, q, ph, geo[i, 3], v_z, veto_i[0], mem[i], commit)
+            t_meet = -1.0  # the time left until the fingers are the object's width apart (s; -1: unknown)
+            if o[6] >= 0:  # corrections/approach_veto.py: T_close (o - w) / (span - w)
+                t_close, w, span = row[o[6] + N_SCENE], 2.0 * row[o[6] + 1], row[o[6] + 4]
+                if t_close > 0.0 and w > 0.0 and span > w:
+                    t_meet = t_close * min(max((row[FINGERS_AT] - w) / (span - w), 0.0), 1.0)
+            geo[i, 6] = timed_close(a_raw[i], idx, q, ph, geo[i, 3], v_z, veto_i[0], t_meet, mem[i], commit)
             if temporal:
                 temporal_row(a_raw[i], a_phys[i], idx, g, q, mem[i], commit)
             else:

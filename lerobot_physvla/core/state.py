@@ -47,6 +47,9 @@ _FIELDS = (
     # the scene's geometry (SCENE: the object's and the target's extents, the hand's; sources/geometry.py), m;
     # NaN where the source does not measure it (the corrector then uses its fixed distances)
     ("scene", lambda n: (len(SCENE),)),
+    # how long the fingers take to close from wide open to the object's narrower width, s, simulated on the
+    # source's own model at reset (sources/geometry.py close_time); NaN where not measured
+    ("close_time", lambda n: ()),
 )
 # What `scene` holds, in order (metres): the object's larger horizontal half-extent (its radius), its narrower
 # horizontal half-extent, its top above its origin; the target's narrower horizontal half-extent; the hand's widest
@@ -54,9 +57,9 @@ _FIELDS = (
 SCENE = ("obj_radius", "obj_half_width", "obj_top", "target_half_width", "hand_span", "pad_half_width",
          "pad_half_height")
 # Fields appended after the first layout, oldest first, with what a packed state written before each existed
-# reads as: pose_age 0 (its source read the simulator's exact pose), scene unknown. Every earlier field keeps its
-# offset, so a shorter packed state is the current one cut after some of these (`upgrade`).
-APPENDED = (("pose_age", 0.0), ("scene", float("nan")))
+# reads as: pose_age 0 (its source read the simulator's exact pose), scene and close time unknown. Every earlier
+# field keeps its offset, so a shorter packed state is the current one cut after some of these (`upgrade`).
+APPENDED = (("pose_age", 0.0), ("scene", float("nan")), ("close_time", float("nan")))
 
 
 @functools.lru_cache(maxsize=None)
@@ -151,6 +154,7 @@ class PhysState:
     J_pos: np.ndarray  # (B, 3, n)
     pose_age: np.ndarray  # (B,) control steps
     scene: np.ndarray  # (B, len(SCENE)) m, NaN where not measured
+    close_time: np.ndarray | None = None  # (B,) s, NaN where not measured (None: unmeasured, in pack())
 
     @property
     def batch_size(self) -> int:
@@ -179,7 +183,10 @@ class PhysState:
         if flat is not None:
             return flat
         b = self.batch_size
-        parts = [np.asarray(getattr(self, name), dtype=np.float64).reshape(b, -1) for name, _ in _FIELDS]
+        parts = [np.asarray(np.nan if getattr(self, name) is None else getattr(self, name), dtype=np.float64)
+                 .reshape(-1, 1 if getattr(self, name) is None else int(np.prod(shape(self.n_joints), dtype=int)))
+                 for name, shape in _FIELDS]
+        parts = [np.broadcast_to(x, (b, x.shape[1])) for x in parts]
         return np.concatenate(parts, axis=1)
 
     @classmethod
@@ -188,7 +195,7 @@ class PhysState:
         flat = np.ascontiguousarray(flat, dtype=np.float64)
         if flat.ndim == 1:
             flat = flat[None]
-        flat = upgrade(flat)  # a packed state from before pose_age or scene
+        flat = upgrade(flat)  # a packed state from before pose_age, scene or close_time
         if flat.ndim != 2:
             raise ValueError(f"physvla: packed state must be (B, L), got shape {flat.shape}")
         b = flat.shape[0]

@@ -117,3 +117,29 @@ def hand(model: mujoco.MjModel, finger_joints: list[int], pad_geoms: list[int] =
         return Hand(span)
     half = np.array([model.geom_size[g] for g in pad_geoms])
     return Hand(span, float(half[:, :2].max()), float(half[:, 2].max()))
+
+
+def close_time(model: mujoco.MjModel, data: mujoco.MjData, opening, open_fingers, close_command, width_m: float,
+               horizon_s: float = 1.0) -> float:
+    """How long the fingers take to close from wide open to `width_m` (the object's width), s: the model simulated
+    on a copy of `data` (the live simulation is never written) with the gripper's own close command.
+
+    opening(d) -> m: the fingers' opening in a MjData; open_fingers(d): sets a copy's fingers wide open and at rest;
+    close_command(d): writes the close command into a copy's ctrl before each physics step (through the gripper's
+    own controller, so a ramped command is timed as it acts). NaN where the fingers do not reach `width_m` within
+    `horizon_s`, or where `width_m` is not below the opening they start from (an object the hand cannot close across).
+    """
+    import copy
+
+    s = copy.copy(data)
+    open_fingers(s)
+    mujoco.mj_forward(model, s)
+    start = opening(s)
+    if not 0.0 < width_m < start:
+        return float("nan")
+    for k in range(1, int(horizon_s / model.opt.timestep) + 1):
+        close_command(s)
+        mujoco.mj_step(model, s)
+        if opening(s) <= width_m:
+            return k * float(model.opt.timestep)
+    return float("nan")

@@ -12,15 +12,17 @@ import numpy as np
 
 from lerobot_physvla.core.state import SCENE
 
-N_HEADER = 4 + len(SCENE)  # valid, episode_step, dt, obj_rest_z, the scene's values
-SCENE_ROWS = slice(4, N_HEADER)  # the scene's rows of the header
+N_HEADER = 5 + len(SCENE)  # valid, episode_step, dt, obj_rest_z, the scene's values, the fingers' close time
+SCENE_ROWS = slice(4, 4 + len(SCENE))  # the scene's rows of the header
+CLOSE_ROW = 4 + len(SCENE)  # the close time's row (core/state.py close_time)
 
 
 def header_rows(f: dict[str, int], dt: float) -> np.ndarray:
     """(N_HEADER, 2) rows [offset, value] of the header, for the field offsets f (core/state.py field_offsets) and the
-    control period dt (s); the episode step 0, the resting height and the scene unknown (NaN), valid 0."""
+    control period dt (s); the episode step 0, the resting height, the scene and the close time unknown (NaN),
+    valid 0."""
     return np.array([[f["valid"], 0.0], [f["episode_step"], 0.0], [f["dt"], dt], [f["obj_rest_z"], np.nan]]
-                    + [[f["scene"] + k, np.nan] for k in range(len(SCENE))])
+                    + [[f["scene"] + k, np.nan] for k in range(len(SCENE))] + [[f["close_time"], np.nan]])
 
 
 class PackedHeader:

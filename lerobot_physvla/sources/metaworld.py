@@ -211,6 +211,8 @@ class MetaworldStateSource(PackedHeader):
             if tgt is not None:
                 rows[3] = tgt.half_width_m
             rows[4:7] = hand.span_m, hand.pad_half_width_m, hand.pad_half_height_m
+            if obj is not None:
+                rows[7] = self.close_time(2.0 * obj.half_width_m)
         except Exception as e:  # noqa: BLE001 - an unmeasured scene keeps the fixed distances
             rows[:] = np.nan
             self.failures[f"scene: {type(e).__name__}"] += 1
@@ -230,6 +232,23 @@ class MetaworldStateSource(PackedHeader):
         a site)."""
         b = self._body_at(self.object_pos() if which == "object" else self.target_pos())
         return None if b is None else geometry.body_extent(self.model, self.env.data, b)
+
+    def close_time(self, width_m: float) -> float:
+        """How long the fingers take to close from wide open to `width_m`, s (sources/geometry.py close_time): the
+        Sawyer's finger actuators driven as SawyerXYZEnv.step drives them on a close (+1: ctrl [1, -1])."""
+        m = self.model
+        acts = [int(np.flatnonzero((m.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT) & (m.actuator_trnid[:, 0] == j))[0])
+                for j in self._finger_joints]
+
+        def open_fingers(d):
+            d.qpos[self._finger_qpos] = [m.jnt_range[j, 0] if s > 0 else m.jnt_range[j, 1]
+                                         for j, s in zip(self._finger_joints, self._finger_sign)]
+            d.qvel[:] = 0.0
+
+        def close(d):
+            d.ctrl[acts] = self._finger_sign
+
+        return geometry.close_time(m, self.env.data, self.opening, open_fingers, close, width_m)
 
     def hand(self) -> geometry.Hand:
         """The gripper: its widest opening (the fingers' ranges summed) and its pads' half sizes in the world, across

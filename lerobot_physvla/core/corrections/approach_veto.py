@@ -19,6 +19,21 @@ apart, at the step the policy begins it:
 CLOSE_S is `veto_close_lead_s` (0 = off, every preset: the rule as before). A state without the arm's velocity
 (qdot or J_pos zero) reads v_z = 0: no close is timed, the rule as before.
 
+`close_meets` (MEETS) asks the physics instead of a timer, at every step of a close in the grasp phase above the
+veto height: will the fingers, closing from where they are now, reach the object while the hand is low enough to
+hold it?
+
+    t_meet = T_close (o - w) / (span - w)     the time left until the fingers are the object's width apart, s
+                                              (T_close: the state's close_time, the source's own gripper simulated
+                                              from wide open to the width w = 2 x the object's narrower half-extent;
+                                              o: the fingers' opening now; span: the hand's widest opening; m)
+    meets:  h + min(v_z, 0) t_meet <= veto height    the hand, moving down as it moves now, has its pads on the
+                                              object by then: the height veto leaves this step's close alone
+    else:   the close cannot meet the object (hovering, rising, or still too high for the fingers' speed): held
+
+A hand at rest (v_z = 0) gives the height veto exactly. A state with no close time (NaN: a robot, a source that
+does not simulate its gripper, an object the hand cannot close across) or no scene leaves the height veto as it is.
+
 Traced failure (MetaWorld shelf-place, design seeds 0-9, eval/studies/metaworld.toml): the scripted policy begins
 its close ~10 cm above the block, coming down at 0.6-0.8 m/s; the height veto (6 cm) holds it 4-5 steps and the
 fingers are still 5.8-6.1 cm apart (baseline: 3.5-4.5, closed on the 4 cm block) when the policy rises; the block
@@ -32,9 +47,9 @@ from lerobot_physvla.core.corrections import slots
 from lerobot_physvla.core.corrections.base import GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, Correction, Field
 from lerobot_physvla.core.phase import APPROACH, GRASP
 
-PARAMS = ("CLOSE_S",)  # veto_close_lead_s: how long the fingers take to shut on the object, s (0: off)
+PARAMS = ("CLOSE_S", "MEETS")  # veto_close_lead_s (s, 0: off); close_meets (1: on)
 MEMORY = (("VETO_CLOSE", 1),)  # the policy's current close: 0 none, 1 timed to the descent, 2 judged step by step
-(CLOSE_S,) = slots.params(__file__)
+(CLOSE_S, MEETS) = slots.params(__file__)
 (VETO_CLOSE,) = slots.memory(__file__)
 
 
@@ -46,10 +61,26 @@ def approach_veto(a_raw, a_phys, idx, geo, p, mem, commit):
 
 
 @njit(error_model="numpy")
-def timed_close(a_raw, idx, p, phase, height, v_z, veto_height, mem, commit):
-    """Whether the policy's close is timed to the hand's descent onto the object (module doc): 1.0 or 0.0.
-    height: the hand above the object's origin (m); v_z: its vertical velocity (m/s); veto_height: this env's (m,
-    0: off). On commit, mem[VETO_CLOSE] keeps the judgement of the close until the policy stops closing."""
+def timed_close(a_raw, idx, p, phase, height, v_z, veto_height, t_meet, mem, commit):
+    """Whether the height veto leaves the policy's close alone (module doc): 1.0 or 0.0. height: the hand above the
+    object's origin (m); v_z: its vertical velocity (m/s); veto_height: this env's (m, 0: off); t_meet: the time
+    left until the fingers are the object's width apart (s; < 0 or NaN: unknown). On commit, mem[VETO_CLOSE] keeps
+    the timer's judgement of the close until the policy stops closing."""
+    timed = _timed(a_raw, idx, p, phase, height, v_z, veto_height, mem, commit)
+    if timed > 0.5 or not p[MEETS] > 0.5:
+        return timed
+    if not (phase == GRASP and veto_height > 0.0 and height > veto_height and t_meet >= 0.0):
+        return 0.0
+    g = idx[GRIPPER]
+    c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])
+    if not (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0:  # not closing
+        return 0.0
+    return 1.0 if height + min(v_z, 0.0) * t_meet <= veto_height else 0.0  # the pads on the object by then
+
+
+@njit(error_model="numpy")
+def _timed(a_raw, idx, p, phase, height, v_z, veto_height, mem, commit):
+    """The timed close (veto_close_lead_s): 1.0 where the close is timed to the hand's descent, else 0.0."""
     g = idx[GRIPPER]
     if g < 0:
         return 0.0
@@ -68,10 +99,14 @@ def timed_close(a_raw, idx, p, phase, height, v_z, veto_height, mem, commit):
     return 1.0 if state < 1.5 else 0.0
 
 
-CORRECTION = Correction("approach_veto", APPROACH, 0, approach_veto, values={"CLOSE_S": lambda c, lay: c.veto_close_lead_s},
+CORRECTION = Correction("approach_veto", APPROACH, 0, approach_veto, values={"CLOSE_S": lambda c, lay: c.veto_close_lead_s,
+                                                                       "MEETS": lambda c, lay: float(c.close_meets)},
                         fields=(Field("veto_close_lead_s", float, 0.0, 0.0, "the gripper veto leaves alone a close the "
                                       "policy begins above the veto height while coming down fast enough to be there "
-                                      "this many seconds later (the fingers' closing time), s; 0 = off"),),
+                                      "this many seconds later (the fingers' closing time), s; 0 = off"),
+                                Field("close_meets", bool, False, False, "the gripper's height veto leaves alone a "
+                                      "close whose fingers, at the speed the state's close time gives them, reach the "
+                                      "object's width while the descending hand is at the veto height (module doc)")),
                         check=lambda c: _check(c))
 
 
