@@ -98,7 +98,8 @@ def degradation_ratio(base: float, this: float) -> float:
 # ---------------------------------------------------------------------------------------------- decision rules
 
 METRICS = ("net", "won_minus_lost_pooled", "pooled_diff", "pooled_lower", "jerk_ratio", "cell_successes",
-           "degradation_ratio", "kept")
+           "degradation_ratio", "kept", "competent", "changed")
+COMPETENT_RATE = 0.8  # a backbone this successful uncorrected (its comparison's baseline) is a competent policy
 
 
 @dataclass(frozen=True)
@@ -118,6 +119,10 @@ class Check:
             - "kept": the candidate's gain over baseline (successes, same pairs) as a fraction of the reference's,
               for each backbone (`against` names nothing here: it reads all three; a reference that gains nothing
               gives inf where the candidate gains as much, else -inf).
+            - "competent": "net" against baseline for each backbone whose baseline succeeds in COMPETENT_RATE or
+              more of its pairs (the competent-policy check, COMPETENT: every comparison has it unless its study
+              drops it, saying why);
+            - "changed": pairs whose outcome differs (won plus lost), for each backbone: 0 = identical outcomes.
         against: "baseline" or "reference".
         backbones: the backbones it reads ([] = every backbone of the role's blocks); a name may be a group.
         exclude: backbones left out.
@@ -207,6 +212,13 @@ def evaluate(check: Check, cells: dict[str, dict[str, list[dict]]], backbones: l
             return check.bounds_ok(pool["diff"]), f"{pool['diff'] * 100:+.1f} pp over {pool['n']} pairs"
         return check.bounds_ok(pool["ci"][0]), (f"{pool['diff'] * 100:+.1f} pp [{pool['ci'][0] * 100:+.1f}, "
                                                f"{pool['ci'][1] * 100:+.1f}] over {pool['n']} pairs")
+    if check.metric == "competent":
+        whole = [b for b in names if complete(b, "candidate", "baseline")]
+        partial = [b for b in names if b not in whole]
+        rates = {b: sum(r["success"] for r in cells[b]["baseline"]) / max(len(cells[b]["baseline"]), 1) for b in whole}
+        whole = [b for b in whole if rates[b] >= COMPETENT_RATE]
+        if not whole and not partial:
+            return True, f"no backbone at {COMPETENT_RATE:.0%} or more uncorrected"
     if check.metric == "kept":
         whole = [b for b in names if complete(b, "candidate", "reference", "baseline")]
         partial = [b for b in names if b not in whole]
@@ -216,13 +228,18 @@ def evaluate(check: Check, cells: dict[str, dict[str, list[dict]]], backbones: l
                 for b in whole}
     else:
         ps = {b: paired(cells[b]["candidate"], cells[b][other]) for b in whole}
-        vals = {b: p["won"] - p["lost"] if check.metric == "net" else p["jerk_ratio"] for b, p in ps.items()}
-    fmt = "{:.2f}" if check.metric in ("jerk_ratio", "kept") else "{:+d}"
+        vals = {b: p["won"] - p["lost"] if check.metric in ("net", "competent") else p["won"] + p["lost"]
+                if check.metric == "changed" else p["jerk_ratio"] for b, p in ps.items()}
+    fmt = "{:.2f}" if check.metric in ("jerk_ratio", "kept") else "{:d}" if check.metric == "changed" else "{:+d}"
     what = ", ".join(f"{b} {fmt.format(v)}" for b, v in vals.items()) + ("; incomplete: " + ", ".join(partial)
                                                                          if partial else "")
     if not all(check.bounds_ok(v) for v in vals.values()):
         return False, what
     return (None if partial else True), what
+
+
+COMPETENT = Check("competent", against="baseline", min=-1, label=f"competent policy: no backbone at {COMPETENT_RATE:.0%} "
+                  "or more uncorrected more than 1 pair net down against baseline (every comparison, unless dropped)")
 
 
 def combine(results: list[bool | None]) -> bool | None:

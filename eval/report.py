@@ -260,10 +260,12 @@ def compare_lines(study, rows, c) -> list[str]:
                 if p["n"]:
                     lines.append(paired_row(f"{b} / candidate vs {other}", p))
         lines.append("")
-        if c.rule:
+        if c.competent:
+            lines += [f"Competent-policy check dropped: {c.competent}", ""]
+        if c.checks:
             lines += ["| check | measured | holds |", "|---|---|---|"]
             results = []
-            for chk in c.rule:
+            for chk in c.checks:
                 ok, what = cmp.evaluate(chk, cells, order)
                 results.append(ok)
                 desc = chk.label or f"{chk.metric} vs {chk.against} {chk.bounds_text()}"
@@ -291,7 +293,7 @@ def rule_cells(study, rows, c, blocks) -> tuple[dict, list[str]]:
 def compare_verdict(study, rows, c, role: str) -> bool | None:
     """What a compare's rule gives on one role's blocks (None: a cell is missing)."""
     cells, order = rule_cells(study, rows, c, [study.blocks[n] for n in c.blocks[role]])
-    return cmp.combine([cmp.evaluate(chk, cells, order)[0] for chk in c.rule])
+    return cmp.combine([cmp.evaluate(chk, cells, order)[0] for chk in c.checks])
 
 
 def section_scatter(study, rows, sec, out) -> list[str]:
@@ -383,6 +385,45 @@ def section_error_sweep(study, rows, sec, out) -> list[str]:
     return lines
 
 
+def section_tasks(study, rows, sec, out) -> list[str]:
+    """One row per task of the blocks: whether the corrector modelled it or passed every action through
+    (unsupported_goal on every step of every episode), and each configuration's successes per backbone, with the
+    pairs that changed against the first configuration; then how many tasks were modelled and passed through."""
+    blocks = _blocks(study, sec)
+    configs = sec["configs"]
+    first, rest = configs[0], configs[1:]
+    lines = ["| backbone | task | corrector | " + " | ".join(configs) + " | " +
+             " | ".join(f"{c}: pairs changed" for c in rest) + " |",
+             "|---|---|---|" + "---|" * (len(configs) + len(rest))]
+    counts = defaultdict(set)
+    for b in _backbones(study, sec, blocks):
+        for bl in blocks:
+            if b not in bl.backbones:
+                continue
+            for t in bl.tasks:
+                got = {c: [r for r in rows.get(c, b, bl) if r["task_id"] == t] for c in configs}
+                corrected = [r for c in rest for r in got[c]]
+                if not corrected:
+                    continue
+                through = all(r.get("passthrough", {}).get("unsupported_goal", 0) >= r["steps"] for r in corrected)
+                counts["passed through" if through else "modelled"].add((bl.scene, t))
+                name = f"T{t}"
+                if bl.scene == "metaworld":
+                    from lerobot_physvla.sim.metaworld_sim import ALL_TASKS
+
+                    name = f"{t} {ALL_TASKS[t]}"
+                cells = [f"{sum(r['success'] for r in got[c])}/{len(got[c])}" if got[c] else "-" for c in configs]
+                changed = []
+                for c in rest:
+                    p = cmp.paired(got[c], got[first]) if got[c] and got[first] else None
+                    changed.append(f"{p['won']} won / {p['lost']} lost" if p and p["n"] else "-")
+                lines.append(f"| {b} | {name} | {'passed through' if through else 'modelled'} | " + " | ".join(cells)
+                             + " | " + " | ".join(changed) + " |")
+    lines += ["", f"Tasks modelled: {len(counts['modelled'])}; passed through (unsupported_goal on every step): "
+              f"{len(counts['passed through'])}.", ""]
+    return lines
+
+
 def _passthroughs(rs: list[dict]) -> str:
     """The corrector's pass-through reasons summed over episodes (`-` for none)."""
     total = defaultdict(int)
@@ -395,7 +436,7 @@ def _passthroughs(rs: list[dict]) -> str:
 SECTIONS = {"text": section_text, "summary": section_summary, "paired": section_paired,
             "paired_backbones": section_paired_backbones, "sweep": section_sweep, "noise_cells": section_noise_cells,
             "compares": section_compares, "scatter": section_scatter, "provenance": section_provenance,
-            "error_sweep": section_error_sweep}
+            "error_sweep": section_error_sweep, "tasks": section_tasks}
 
 
 def _rel(study: Study, path: str) -> str:

@@ -91,6 +91,14 @@ class Compare:
     decision: str = ""
     about: str = ""
     also: list[str] = field(default_factory=list)  # more configurations shown beside it
+    competent: str = ""  # why this comparison drops the competent-policy check (compare.COMPETENT); "" = it applies
+
+    @property
+    def checks(self) -> list:
+        """The rule's checks, then the competent-policy check unless the study drops it."""
+        from compare import COMPETENT
+
+        return list(self.rule) + ([] if self.competent else [COMPETENT])
 
 
 def _span(v) -> tuple[int, ...]:
@@ -173,7 +181,7 @@ class Study:
                        baseline=c.get("baseline", "baseline"), blocks=blocks,
                        rule=[self._check(Check.from_dict(x)) for x in c.get("rule", [])], outcome=c.get("outcome", ""),
                        verdicts=dict(c.get("verdicts", {})), decision=c.get("decision", ""), about=c.get("about", ""),
-                       also=list(c.get("also", [])))
+                       also=list(c.get("also", [])), competent=str(c.get("competent", "")))
 
     def _check(self, chk):
         """A rule's check with its backbone groups expanded."""

@@ -107,13 +107,17 @@ class MetaworldExpertConfig:
 
 
 def make_policy(task: str):
-    """The scripted policy of a modelled task (POLICIES); ValueError for another task."""
+    """The scripted policy of a MetaWorld v3 task: POLICIES for a modelled one, metaworld's own ENV_POLICY_MAP for
+    the others (the pass-through scenes); ValueError for a name MetaWorld does not know."""
     import metaworld.policies as policies
 
     task = task.removeprefix("metaworld-")
-    if task not in POLICIES:
-        raise ValueError(f"physvla: no metaworld teacher for {task!r}; it covers {', '.join(POLICIES)}")
-    return getattr(policies, POLICIES[task])()
+    if task in POLICIES:
+        return getattr(policies, POLICIES[task])()
+    if task in policies.ENV_POLICY_MAP:
+        return policies.ENV_POLICY_MAP[task]()
+    raise ValueError(f"physvla: no metaworld teacher for {task!r}; it covers MetaWorld's v3 tasks, e.g. "
+                     f"{', '.join(POLICIES)}")
 
 
 class MetaworldExpert:

@@ -6,7 +6,10 @@ this fixed order (a study block's `tasks = [0, 5]` is all six):
     0 pick-place-v3   1 pick-place-wall-v3   2 bin-picking-v3   3 shelf-place-v3   4 basketball-v3
     5 pick-out-of-hole-v3
 
-The other MetaWorld tasks are no scenes (their actions would pass through the corrector: unsupported_goal).
+Scenes `metaworld/6` .. `metaworld/49` are the other 44 MetaWorld v3 tasks (PASS_THROUGH, sorted by name): the
+corrector does not model them, so their state rows are marked unsupported_goal (valid = -1, with the hand and the
+control period read) and every action passes through; MetaWorld's own scripted policy of each runs on them (the
+`metaworld` teacher), which makes the 50 tasks a harm suite (eval/studies/metaworld50.toml).
 
 The env is built the way lerobot's `MetaworldEnv` builds it (`metaworld.MT1(task, seed=42)`, its train task 0,
 then `_freeze_rand_vec = False`, `seeded_rand_vec = True`), with no renderer. `reset(seed)` does what
@@ -31,7 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lerobot_physvla.core.config import LAYOUTS
-from lerobot_physvla.core.state import PhysState
+from lerobot_physvla.core.state import UNSUPPORTED_GOAL_VALID, PhysState
+from lerobot_physvla.sources.metaworld import UNSUPPORTED
 
 TASKS: tuple[str, ...] = ("pick-place-v3", "pick-place-wall-v3", "bin-picking-v3", "shelf-place-v3", "basketball-v3",
                           "pick-out-of-hole-v3")
@@ -45,17 +49,21 @@ DESCRIPTIONS: dict[str, str] = {
     "basketball-v3": "Dunk the basketball into the basket",
     "pick-out-of-hole-v3": "Pick up a puck from a hole",
 }
+# the 44 tasks the corrector does not model, sorted by name: scenes metaworld/6 .. metaworld/49 (module docstring)
+PASS_THROUGH: tuple[str, ...] = tuple(sorted(UNSUPPORTED))
+ALL_TASKS: tuple[str, ...] = TASKS + PASS_THROUGH
 HORIZON = 500  # SawyerXYZEnv.max_path_length
 MT1_SEED = 42  # lerobot's MetaworldEnv: metaworld.MT1(task, seed=42), train task 0
 
 
 def task_name(index: int) -> str:
     """The MetaWorld task of scene index `index` (TASKS); a clear ValueError for another index."""
-    if not isinstance(index, (int, np.integer)) or not 0 <= index < len(TASKS):
+    if not isinstance(index, (int, np.integer)) or not 0 <= index < len(ALL_TASKS):
         listed = ", ".join(f"{k} {t}" for k, t in enumerate(TASKS))
         raise ValueError(f"physvla: no MetaWorld scene index {index!r}; the scenes are metaworld/<k> with k one of: "
-                         f"{listed} (the tasks the corrector models)")
-    return TASKS[int(index)]
+                         f"{listed} (the tasks the corrector models), or 6-{len(ALL_TASKS) - 1} (the other MetaWorld "
+                         "tasks, sorted by name, whose actions pass through)")
+    return ALL_TASKS[int(index)]
 
 
 @dataclass(frozen=True)
@@ -66,9 +74,15 @@ class MetaworldTask:
     name: str
 
     @property
+    def modelled(self) -> bool:
+        """The corrector models this task (TASKS); else its actions pass through (PASS_THROUGH)."""
+        return self.name in TASKS
+
+    @property
     def language(self) -> str:
-        """lerobot's task description, what lerobot-eval gives a language-conditioned policy."""
-        return DESCRIPTIONS[self.name]
+        """lerobot's task description, what lerobot-eval gives a language-conditioned policy (the task's name for
+        a pass-through task)."""
+        return DESCRIPTIONS.get(self.name, self.name)
 
 
 def make_metaworld_env(task: str):
@@ -113,7 +127,7 @@ class MetaworldScene:
         self.task = MetaworldTask(int(index), task_name(index))
         self.name = f"metaworld/{self.task.index}"
         self.env = make_metaworld_env(self.task.name)
-        self.source = MetaworldStateSource(self.env, self.task.name)
+        self.source = MetaworldStateSource(self.env, self.task.name) if self.task.modelled else None
         self.raw_obs = np.zeros(39)
         self.info: dict = {}
         self.reset(0)
@@ -123,15 +137,29 @@ class MetaworldScene:
         obs, _ = self.env.reset()
         self.raw_obs = np.asarray(obs, dtype=np.float64)
         self.info = {}
-        self.source.reset()
+        self._step = 0
+        if self.source is not None:
+            self.source.reset()
 
     def read(self) -> PhysState:
-        return self.source.read()
+        if self.source is not None:
+            return self.source.read()
+        return self._pass_through()
+
+    def _pass_through(self) -> PhysState:
+        """The row of a task outside the model: unsupported_goal (valid -1), the hand and the control period read
+        (the metrics' trajectory), the rest empty: the corrector passes every action through."""
+        st = PhysState.empty(1, 7)
+        st.valid[0], st.episode_step[0], st.dt[0] = UNSUPPORTED_GOAL_VALID, self._step, float(self.env.dt)
+        st.eef_pos[0] = np.asarray(self.env.tcp_center, dtype=np.float64)
+        return st
 
     def step(self, action: np.ndarray) -> tuple[bool, float]:
         obs, reward, _, _, self.info = self.env.step(np.asarray(action, dtype=np.float64))
         self.raw_obs = np.asarray(obs, dtype=np.float64)
-        self.source.step()
+        self._step += 1
+        if self.source is not None:
+            self.source.step()
         return bool(self.info.get("success", False)), float(reward)
 
     def policy_observation(self, state: PhysState) -> dict[str, np.ndarray]:
@@ -148,7 +176,7 @@ def scene_index(name: str) -> int:
     """k of a scene name "metaworld/<k>"; ValueError naming the scenes otherwise."""
     _, _, k = name.partition("/")
     if not name.startswith("metaworld/") or not k.isdigit():
-        raise ValueError(f"physvla: MetaWorld scenes are named metaworld/<k>, k in 0-{len(TASKS) - 1} "
+        raise ValueError(f"physvla: MetaWorld scenes are named metaworld/<k>, k in 0-{len(ALL_TASKS) - 1} "
                          f"({', '.join(f'{i} {t}' for i, t in enumerate(TASKS))}); got {name!r}")
     task_name(int(k))
     return int(k)

@@ -16,10 +16,11 @@ pytest.importorskip("metaworld")
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "eval"))
 from backbones import ExpertBackbone  # noqa: E402
 
-from lerobot_physvla.core.config import LAYOUTS  # noqa: E402
+from lerobot_physvla.core.config import LAYOUTS, preset  # noqa: E402
+from lerobot_physvla.core.corrector import Corrector  # noqa: E402
 from lerobot_physvla.core.state import PhysState  # noqa: E402
 from lerobot_physvla.sim.metaworld_expert import POLICIES, MetaworldExpert, MetaworldExpertConfig  # noqa: E402
-from lerobot_physvla.sim.metaworld_sim import HORIZON, TASKS, task_name  # noqa: E402
+from lerobot_physvla.sim.metaworld_sim import ALL_TASKS, HORIZON, PASS_THROUGH, TASKS, task_name  # noqa: E402
 from lerobot_physvla.sim.scenes import make_scene  # noqa: E402
 from lerobot_physvla.sources.metaworld import MODELLED  # noqa: E402
 
@@ -41,15 +42,15 @@ def test_the_scenes_are_the_modelled_tasks_in_a_fixed_order_with_their_own_polic
 
 
 def test_an_unknown_scene_or_task_index_is_a_clear_error():
-    for bad in ("metaworld/6", "metaworld/-1"):
+    for bad in ("metaworld/50", "metaworld/-1"):
         with pytest.raises(ValueError, match=r"metaworld/<k>"):
             make_scene(bad)
-    with pytest.raises(ValueError, match=r"no MetaWorld scene index 6; .*0 pick-place-v3, .*5 pick-out-of-hole-v3"):
-        make_scene("metaworld/6")
+    with pytest.raises(ValueError, match=r"no MetaWorld scene index 50; .*0 pick-place-v3, .*5 pick-out-of-hole-v3"):
+        make_scene("metaworld/50")
     with pytest.raises(ValueError, match="named metaworld/<k>"):
         make_scene("metaworld")
     with pytest.raises(ValueError, match="no MetaWorld scene index"):
-        task_name(len(TASKS))
+        task_name(len(ALL_TASKS))
 
 
 def test_the_scene_is_metaworlds_own_episode(scene):
@@ -206,8 +207,8 @@ def test_unsupported_fields_and_scenes_are_clear_errors(scene):
         ExpertBackbone(scene, {"noise_stage": "place"})
     with pytest.raises(ValueError, match="metaworld/<k> scenes only"):
         ExpertBackbone(SimpleNamespace(name="lift", layout=LAYOUTS["metaworld"], expert={}), {"teacher": "metaworld"})
-    with pytest.raises(ValueError, match="no metaworld teacher for 'door-open-v3'"):
-        MetaworldExpert("door-open-v3")
+    with pytest.raises(ValueError, match="no metaworld teacher for 'no-such-task-v3'"):
+        MetaworldExpert("no-such-task-v3")
     assert ExpertBackbone(scene, {"teacher": "metaworld", "draw_offset": 7}).draw_offset == 7
 
 
@@ -219,3 +220,27 @@ def test_the_task_descriptions_are_lerobots():
     assert set(metaworld_sim.DESCRIPTIONS) == set(metaworld_sim.TASKS)
     for task, words in metaworld_sim.DESCRIPTIONS.items():
         assert TASK_DESCRIPTIONS[task] == words
+
+
+def test_the_other_44_tasks_are_pass_through_scenes_with_metaworlds_own_policies():
+    from metaworld.env_dict import ALL_V3_ENVIRONMENTS
+
+    from lerobot_physvla.sources.metaworld import UNSUPPORTED
+
+    assert set(ALL_TASKS) == set(ALL_V3_ENVIRONMENTS) and len(ALL_TASKS) == 50
+    assert ALL_TASKS[:6] == TASKS and PASS_THROUGH == tuple(sorted(UNSUPPORTED))
+    sc = make_scene(f"metaworld/{ALL_TASKS.index('door-open-v3')}")
+    assert not sc.task.modelled and sc.source is None
+    sc.reset(3)
+    st = sc.read()
+    assert st.valid[0] == -1.0 and st.dt[0] == sc.env.dt and np.allclose(st.eef_pos[0], sc.env.tcp_center)
+    bb = ExpertBackbone(sc, {})  # the scene's teacher: MetaWorld's door-open policy
+    c = Corrector(preset("default", layout="metaworld", weighting="task_space"))
+    for _ in range(20):
+        st = sc.read()
+        raw = np.asarray(bb.act(sc, st), dtype=np.float64)[None]
+        out = c(raw, st)
+        assert np.array_equal(out, raw)  # passed through, bit for bit
+        sc.step(out[0])
+    assert c.passthrough_counts == {"unsupported_goal": 20}
+    assert sc.read().episode_step[0] == 20
