@@ -402,7 +402,9 @@ class EpisodeRecorder:
 
         The postprocessor cannot see the outcome of an episode's last step when no further
         policy call follows it (the batch's last env to finish), so the env's word is final.
-        Episodes of a task are matched in start order (batch by batch, env index within).
+        Episodes of a task are matched in start order (batch by batch, env index within); where several task
+        groups share an id (MetaWorld's: every task its own group, id 0), their successes come concatenated in
+        lerobot's order, which is the order their episodes ran.
         """
         by_task: dict[int, list[_Episode]] = {}
         for ep in self.episodes:

@@ -30,7 +30,7 @@ def activate(argv: list[str] | None = None) -> None:
     from lerobot_physvla.envs import libero_physvla  # noqa: F401
     from lerobot_physvla.envs import metaworld_physvla  # noqa: F401
     from lerobot_physvla.envs import so101_physvla  # noqa: F401
-    from lerobot_physvla.policies import physvla_scripted  # noqa: F401
+    from lerobot_physvla.policies import physvla_metaworld_scripted, physvla_scripted  # noqa: F401
     from lerobot_physvla.processor import physvla_processor, physvla_robot_step  # noqa: F401
     from lerobot_physvla.robots import physvla_sim_panda, physvla_sim_so101  # noqa: F401  (robot types)
 

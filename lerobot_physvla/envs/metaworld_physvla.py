@@ -47,6 +47,7 @@ ACTION_DIM = 4  # dx, dy, dz, gripper
 ENV_STATE_DIM = 6  # object xyz, target xyz
 METAWORLD_HORIZON = 500  # SawyerXYZEnv.max_path_length: stepping past it raises
 _BLANK_FRAME = np.zeros((64, 64, 3), np.uint8)  # what render() shows with cameras off
+RAW_OBS_DIM = 39  # MetaWorld v3's observation (raw_obs)
 _F = field_offsets(N_JOINTS)
 _OBJ, _TGT = _F["obj_pos"], _F["target_pos"]
 
@@ -60,6 +61,8 @@ class MetaworldStateExport(StateExport):
 
     Attributes:
         cameras: False: the env never renders and returns no pixels.
+        raw_obs: with cameras off, environment_state is MetaWorld's own 39-D observation (what its scripted
+            policies read: the `physvla_metaworld_scripted` policy) instead of [object xyz, target xyz].
         task_id: the task's index in its task group, as lerobot-eval numbers it (exported in physvla_extra).
         task: the MetaWorld task name.
         read_failures: state reads that raised (those steps export an invalid state: no correction).
@@ -70,10 +73,12 @@ class MetaworldStateExport(StateExport):
     """
 
     def __init__(self, env, task_id: int = 0, cameras: bool = True, perception: PerceptionConfig | None = None,
-                 max_steps: int | None = None):
+                 max_steps: int | None = None, raw_obs: bool = False):
         super().__init__(env, N_JOINTS, ACTION_DIM, task_id, perception)
         inner = env.unwrapped
         self.cameras = cameras
+        self.raw_obs = raw_obs and not cameras
+        self._raw = np.zeros(RAW_OBS_DIM)  # MetaWorld's latest observation (raw_obs)
         self.task = str(getattr(inner, "task", ""))
         self._sim = None  # the SawyerXYZEnv the source reads (MetaworldEnv builds it at its first reset)
         horizon = int(getattr(inner, "_max_episode_steps", METAWORLD_HORIZON))
@@ -81,7 +86,8 @@ class MetaworldStateExport(StateExport):
         obs_space = dict(env.observation_space.spaces)
         if not cameras:
             obs_space.pop("pixels", None)
-            obs_space["environment_state"] = spaces.Box(-np.inf, np.inf, (ENV_STATE_DIM,), np.float64)
+            dim = RAW_OBS_DIM if self.raw_obs else ENV_STATE_DIM
+            obs_space["environment_state"] = spaces.Box(-np.inf, np.inf, (dim,), np.float64)
         self.observation_space = self._state_spaces(obs_space)
 
     def control_dt(self) -> float:
@@ -90,6 +96,7 @@ class MetaworldStateExport(StateExport):
     def _state_only_obs(self, raw_obs: np.ndarray) -> dict:
         """MetaworldEnv._format_raw_obs without the render (cameras=false): agent_pos where its obs_type has it."""
         inner = self.env.unwrapped
+        self._raw = np.asarray(raw_obs, dtype=np.float64).copy()
         return {"agent_pos": raw_obs[:4]} if inner.obs_type == "pixels_agent_pos" else {}
 
     def _augment(self, obs: dict, success: bool) -> dict:
@@ -101,7 +108,9 @@ class MetaworldStateExport(StateExport):
             except Exception:  # noqa: BLE001 - a task with no object or target: zeros
                 row[_OBJ : _TGT + 3] = 0.0
         obs = self._export(obs, success, row)
-        if not self.cameras:  # object xyz, target xyz (exact: the policy's observation is never faulted)
+        if self.raw_obs:  # MetaWorld's own observation, as its scripted policies read it
+            obs["environment_state"] = self._raw.copy()
+        elif not self.cameras:  # object xyz, target xyz (exact: the policy's observation is never faulted)
             obs["environment_state"] = np.concatenate([row[_OBJ : _OBJ + 3], row[_TGT : _TGT + 3]])
         return obs
 
@@ -155,11 +164,11 @@ class MetaworldStateExport(StateExport):
 
 
 def _make_env(task: str, task_id: int, gym_kwargs: dict, cameras: bool, perception: PerceptionConfig | None,
-              max_steps: int | None) -> MetaworldStateExport:
+              max_steps: int | None, raw_obs: bool = False) -> MetaworldStateExport:
     from lerobot.envs.metaworld import MetaworldEnv
 
     return MetaworldStateExport(MetaworldEnv(task=task, **gym_kwargs), task_id=task_id, cameras=cameras,
-                                perception=perception, max_steps=max_steps)
+                                perception=perception, max_steps=max_steps, raw_obs=raw_obs)
 
 
 @EnvConfig.register_subclass("metaworld_physvla")
@@ -171,6 +180,8 @@ class MetaworldPhysVLAEnvConfig(MetaworldEnvConfig):
         episode_length: the rollout's horizon, control steps (at most MetaWorld's 500); None: MetaWorld's 500.
         cameras: render (as `metaworld`); false gives a state-only env whose observations are agent_pos (with
             obs_type pixels_agent_pos) + environment_state (object and target xyz).
+        raw_obs: with cameras false, environment_state is MetaWorld's own 39-D observation instead (what
+            `metaworld.policies` read: the `physvla_metaworld_scripted` policy runs on it).
         pose_bias_m, pose_noise_m, pose_lag_steps, pose_dropout: the perception model's faults on the object's and
             the target's poses in physvla_state (sources/perception.py; as libero_physvla's); all 0: exact.
         physvla_defaults: the corrector's fields this env needs (its action layout, core/config.py LAYOUTS; Branch
@@ -180,6 +191,7 @@ class MetaworldPhysVLAEnvConfig(MetaworldEnvConfig):
     task: str = "pick-place-v3"
     episode_length: int | None = None
     cameras: bool = True
+    raw_obs: bool = False
     pose_bias_m: float = 0.0
     pose_noise_m: float = 0.0
     pose_lag_steps: int = 0
@@ -200,11 +212,15 @@ class MetaworldPhysVLAEnvConfig(MetaworldEnvConfig):
         if self.episode_length is not None and self.episode_length < 1:
             raise ValueError(f"metaworld_physvla: episode_length must be >= 1 (or unset), got {self.episode_length}")
         self.perception  # noqa: B018 - a fault out of range is a clear ValueError now, not in a worker
+        if self.raw_obs and self.cameras:
+            raise ValueError("metaworld_physvla: raw_obs replaces environment_state, which exists with cameras off: "
+                             "add --env.cameras=false")
         if not self.cameras:
             for key in list(self.features):
                 if self.features[key].type == FeatureType.VISUAL:
                     del self.features[key]
-            self.features["environment_state"] = PolicyFeature(type=FeatureType.ENV, shape=(ENV_STATE_DIM,))
+            dim = RAW_OBS_DIM if self.raw_obs else ENV_STATE_DIM
+            self.features["environment_state"] = PolicyFeature(type=FeatureType.ENV, shape=(dim,))
             self.features_map["environment_state"] = OBS_ENV_STATE
             self.features_map = {k: v for k, v in self.features_map.items() if not v.startswith(OBS_IMAGE)}
 
@@ -225,7 +241,7 @@ class MetaworldPhysVLAEnvConfig(MetaworldEnvConfig):
             out[group] = {}
             for tid, task in enumerate(DIFFICULTY_TO_TASKS.get(group, [group])):
                 fns = [partial(_make_env, task, tid, dict(self.gym_kwargs), self.cameras, self.perception,
-                               self.horizon) for _ in range(n_envs)]
+                               self.horizon, self.raw_obs) for _ in range(n_envs)]
                 out[group][tid] = _LazyAsyncVectorEnv(fns) if env_cls is gym.vector.AsyncVectorEnv else env_cls(fns)
         return out
 

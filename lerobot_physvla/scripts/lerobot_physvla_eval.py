@@ -40,7 +40,10 @@ def _write_diagnostics(cfg, step) -> None:
     info = Path(cfg.output_dir) / "eval_info.json"
     if info.is_file():
         per_task = json.loads(info.read_text()).get("per_task", [])
-        recorder.apply_env_successes({int(t["task_id"]): t["metrics"]["successes"] for t in per_task})
+        successes: dict[int, list[bool]] = {}  # task groups (MetaWorld's: one per task, each id 0) in lerobot's order
+        for t in per_task:
+            successes.setdefault(int(t["task_id"]), []).extend(t["metrics"]["successes"])
+        recorder.apply_env_successes(successes)
     path = recorder.write(cfg.output_dir, config=step.config)
     counts = ", ".join(f"{k} {v}" for k, v in recorder.summary()["passthrough"].items()) or "none"  # as the table
     logging.info("physvla: diagnostics written to %s (pass-throughs: %s)", path, counts)

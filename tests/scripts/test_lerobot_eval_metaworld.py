@@ -74,3 +74,32 @@ def test_metaworld_eval_is_corrected_in_the_metaworld_layout_and_counts_an_unmod
         np.testing.assert_allclose(a, pick["corrected_actions"][t], atol=1e-6)
     assert "2 episodes, 16 frames" in r.stdout and "pass-throughs: unsupported_goal 8" in r.stdout
     assert "unsupported_goal: door-open-v3 (no grasp-carry-place: a door is pulled)" in r.stderr
+
+
+def test_metaworlds_own_scripted_policies_under_lerobot_eval_an_unmodelled_task_passes_through_whole(tmp_path):
+    """MetaWorld's own scripted policies (`physvla_metaworld_scripted`, reading MetaWorld's 39-D observation with
+    --env.raw_obs=true) on a modelled task and one outside the model: the unmodelled task's every frame passes through
+    bit for bit under one named reason, each episode is one row of the report, and each episode's success is the
+    env's own, task group by task group (every MetaWorld group numbers its task 0)."""
+    out = tmp_path / "eval"
+    subprocess.run([sys.executable, str(Path(__file__).resolve().parents[2] / "backbones" / "make_scripted_policy.py"),
+                    str(tmp_path / "policy"), "--scene", "metaworld"], check=True, capture_output=True, timeout=300)
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    r = subprocess.run(
+        [str(BIN / "lerobot-eval"), f"--policy.path={tmp_path / 'policy'}", f"--output_dir={out}",
+         "--env.type=metaworld_physvla", "--env.cameras=false", "--env.raw_obs=true",
+         "--env.task=shelf-place-v3,door-open-v3", "--eval.n_episodes=1", "--eval.batch_size=1",
+         "--policy.device=cpu", "--policy.postprocess=physvla", "--physvla.close_meets=true"],
+        capture_output=True, text=True, timeout=600, env=env, stdin=subprocess.DEVNULL)
+    assert r.returncode == 0, r.stderr[-4000:]
+    episodes = [json.loads(line) for line in (out / "physvla_episodes.jsonl").read_text().splitlines()]
+    assert len(episodes) == 2 and all(e["steps"] > 20 for e in episodes)  # one row per episode, none one frame
+    shelf, door = episodes
+    assert shelf["passthrough"] == {} and door["passthrough"] == {"unsupported_goal": door["steps"]}
+    for raw, corrected in zip(door["raw_actions"], door["corrected_actions"], strict=True):
+        assert raw == corrected  # passed through, bit for bit
+    info = json.loads((out / "eval_info.json").read_text())
+    assert [t["task_group"] for t in info["per_task"]] == ["shelf-place-v3", "door-open-v3"]
+    assert [e["success"] for e in episodes] == [t["metrics"]["successes"][0] for t in info["per_task"]]
+    assert door["success"]  # MetaWorld's door-open policy opens the door, untouched
+    assert r.stderr.count("unsupported_goal: door-open-v3 (no grasp-carry-place: a door is pulled)") == 1  # said once
