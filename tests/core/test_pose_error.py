@@ -27,22 +27,26 @@ def _state(b=1, eef=(0.0, 0.0, 1.0), obj=(0.02, -0.01, 0.9), tgt=(0.3, 0.0, 0.9)
     return s
 
 
-@pytest.mark.parametrize("cut", ["before pose_age", "before scene"])
+@pytest.mark.parametrize("cut", ["before pose_age", "before scene", "before close_time"])
 def test_appended_fields_come_last_and_a_state_packed_before_them_reads_as_age_zero_and_no_scene(cut):
     n = 7
     f = field_offsets(n)
-    assert f["scene"] == packed_size(n) - len(SCENE) and f["pose_age"] == f["scene"] - 1  # others keep their offsets
+    assert f["close_time"] == packed_size(n) - 1 and f["scene"] == f["close_time"] - len(SCENE)
+    assert f["pose_age"] == f["scene"] - 1  # every other field keeps its offset
     s = _state(age=4.0)
     s.scene[:] = 0.05
-    old = s.pack()[:, : f["pose_age"] if cut == "before pose_age" else f["scene"]]  # what a source of before wrote
+    s.close_time[:] = 0.1
+    old = s.pack()[:, : {"before pose_age": f["pose_age"], "before scene": f["scene"],
+                         "before close_time": f["close_time"]}[cut]]  # what a source of before wrote
     assert is_legacy_size(old.shape[1]) and not is_legacy_size(packed_size(n))
     up = upgrade(old)
-    assert up.shape == (1, packed_size(n)) and np.isnan(up[0, f["scene"]:]).all()
+    assert up.shape == (1, packed_size(n)) and np.isnan(up[0, f["close_time"]])
+    assert np.isnan(up[0, f["scene"]:]).all() == (cut != "before close_time")
     assert up[0, f["pose_age"]] == (0.0 if cut == "before pose_age" else 4.0)
     assert PhysState.unpack(old).pose_age[0] == up[0, f["pose_age"]]
     a = np.array([[0.2, -0.1, 0.1, 0.0, 0.0, 0.0, -1.0]])
     c = Corrector(PhysVLAConfig())
-    s.pose_age[:], s.scene[:] = up[0, f["pose_age"]], np.nan
+    s.pose_age[:], s.scene[:], s.close_time[:] = up[0, f["pose_age"]], up[0, f["scene"]:f["close_time"]], np.nan
     np.testing.assert_array_equal(c.correct_packed(a, old), Corrector(PhysVLAConfig()).correct_packed(a, s.pack()))
 
 
