@@ -27,7 +27,8 @@ KEY = ("backbone", "config", "scene", "task_id", "seed")  # one episode per key
 # (what every configuration before them did), so older configurations keep their hashes
 NEUTRAL = {"pose_error_m": 0.0, "pose_max_age_steps": 5, "geometry": "fixed", "veto_close_lead_s": 0.0,
            "pose_noise_m": 0.0, "centre_guide": False, "centre_guide_once": False, "release_assist_error_k": 0.0,
-           "centre_guide_yield_steps": 0, "centre_guide_trailing": True, "close_meets": False}
+           "centre_guide_yield_steps": 0, "centre_guide_trailing": True, "close_meets": False,
+           "close_meets_onset": False}
 PERCEPTION = "perception"  # a study configuration's perception faults (sources/perception.py), kept beside it
 
 

@@ -69,3 +69,25 @@ def test_a_close_that_meets_the_object_is_left_alone_and_one_that_cannot_is_held
 def test_the_state_keeps_the_close_time_after_the_scene():
     f = field_offsets(7)
     assert f["close_time"] == f["scene"] + len(SCENE)  # core/branch_a.py reads it there
+
+
+def test_judged_at_onset_a_close_begun_where_it_could_not_meet_stays_held():
+    """close_meets_onset: the judgement is made at the step the policy begins its close and kept while it lasts. A
+    close begun hovering (a premature close) stays held when the hand then comes down fast; one begun on the way down
+    where it meets the object is left alone, also if the hand then stops above the veto height."""
+    spec = LAYOUTS["metaworld"]
+    close, veto_h, reach = spec[2], spec[6] + spec[7], 0.8 * spec[3]
+    meets = veto_h + 0.8 * reach
+    raw, opened = np.array([[0.0, 0.0, -1.0, close]]), np.array([[0.0, 0.0, -1.0, -close]])
+
+    def corrector(**kw):
+        return Corrector(PhysVLAConfig.from_dict({**preset("default").to_dict(), "layout": "metaworld", **kw}))
+
+    onset, each = corrector(close_meets_onset=True), corrector(close_meets=True)
+    for c in (onset, each):
+        assert c(raw, _state(spec, meets, 0.0))[0, -1] != close  # begun hovering: held
+    assert onset(raw, _state(spec, meets, -0.8))[0, -1] != close  # the same close, now coming down: still held
+    assert each(raw, _state(spec, meets, -0.8))[0, -1] == close  # judged step by step: let go
+    onset(opened, _state(spec, meets, -0.8))  # the policy opens: its next close is judged afresh
+    assert onset(raw, _state(spec, meets, -0.8))[0, -1] == close  # begun coming down, meeting it: left alone
+    assert onset(raw, _state(spec, meets, 0.0))[0, -1] == close  # and kept while it lasts

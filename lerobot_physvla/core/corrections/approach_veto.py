@@ -31,6 +31,10 @@ hold it?
                                               object by then: the height veto leaves this step's close alone
     else:   the close cannot meet the object (hovering, rising, or still too high for the fingers' speed): held
 
+`close_meets_onset` (MEETS_ONSET) makes the same judgement once, at the step the policy begins its close, and keeps
+it while the close lasts (as the timed close does): a close begun where it could not meet the object (a premature
+close held since the approach, then carried down by the descent) stays held step by step.
+
 A hand at rest (v_z = 0) gives the height veto exactly. A state with no close time (NaN: a robot, a source that
 does not simulate its gripper, an object the hand cannot close across) or no scene leaves the height veto as it is.
 
@@ -47,9 +51,9 @@ from lerobot_physvla.core.corrections import slots
 from lerobot_physvla.core.corrections.base import GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, Correction, Field
 from lerobot_physvla.core.phase import APPROACH, GRASP
 
-PARAMS = ("CLOSE_S", "MEETS")  # veto_close_lead_s (s, 0: off); close_meets (1: on)
+PARAMS = ("CLOSE_S", "MEETS", "MEETS_ONSET")  # veto_close_lead_s (s, 0: off); close_meets, close_meets_onset (1: on)
 MEMORY = (("VETO_CLOSE", 1),)  # the policy's current close: 0 none, 1 timed to the descent, 2 judged step by step
-(CLOSE_S, MEETS) = slots.params(__file__)
+(CLOSE_S, MEETS, MEETS_ONSET) = slots.params(__file__)
 (VETO_CLOSE,) = slots.memory(__file__)
 
 
@@ -66,7 +70,7 @@ def timed_close(a_raw, idx, p, phase, height, v_z, veto_height, t_meet, mem, com
     object's origin (m); v_z: its vertical velocity (m/s); veto_height: this env's (m, 0: off); t_meet: the time
     left until the fingers are the object's width apart (s; < 0 or NaN: unknown). On commit, mem[VETO_CLOSE] keeps
     the timer's judgement of the close until the policy stops closing."""
-    timed = _timed(a_raw, idx, p, phase, height, v_z, veto_height, mem, commit)
+    timed = _timed(a_raw, idx, p, phase, height, v_z, veto_height, t_meet, mem, commit)
     if timed > 0.5 or not p[MEETS] > 0.5:
         return timed
     if not (phase == GRASP and veto_height > 0.0 and height > veto_height and t_meet >= 0.0):
@@ -79,8 +83,9 @@ def timed_close(a_raw, idx, p, phase, height, v_z, veto_height, t_meet, mem, com
 
 
 @njit(error_model="numpy")
-def _timed(a_raw, idx, p, phase, height, v_z, veto_height, mem, commit):
-    """The timed close (veto_close_lead_s): 1.0 where the close is timed to the hand's descent, else 0.0."""
+def _timed(a_raw, idx, p, phase, height, v_z, veto_height, t_meet, mem, commit):
+    """The close judged once, at the step the policy begins it, and kept while it lasts: timed to the hand's descent
+    by the timer (veto_close_lead_s) or, with close_meets_onset, meeting the object then (module doc); 1.0 or 0.0."""
     g = idx[GRIPPER]
     if g < 0:
         return 0.0
@@ -93,6 +98,8 @@ def _timed(a_raw, idx, p, phase, height, v_z, veto_height, mem, commit):
     if state < 0.5:  # the close begins now
         timed = (p[CLOSE_S] > 0.0 and phase == GRASP and veto_height > 0.0 and height > veto_height
                  and height + min(v_z, 0.0) * p[CLOSE_S] <= veto_height)
+        timed = timed or (p[MEETS_ONSET] > 0.5 and phase == GRASP and veto_height > 0.0 and height > veto_height
+                          and t_meet >= 0.0 and height + min(v_z, 0.0) * t_meet <= veto_height)
         state = 1.0 if timed else 2.0
         if commit:
             mem[VETO_CLOSE] = state
@@ -100,13 +107,17 @@ def _timed(a_raw, idx, p, phase, height, v_z, veto_height, mem, commit):
 
 
 CORRECTION = Correction("approach_veto", APPROACH, 0, approach_veto, values={"CLOSE_S": lambda c, lay: c.veto_close_lead_s,
-                                                                       "MEETS": lambda c, lay: float(c.close_meets)},
+                                                                       "MEETS": lambda c, lay: float(c.close_meets),
+                                                                       "MEETS_ONSET": lambda c, lay: float(c.close_meets_onset)},
                         fields=(Field("veto_close_lead_s", float, 0.0, 0.0, "the gripper veto leaves alone a close the "
                                       "policy begins above the veto height while coming down fast enough to be there "
                                       "this many seconds later (the fingers' closing time), s; 0 = off"),
                                 Field("close_meets", bool, False, False, "the gripper's height veto leaves alone a "
                                       "close whose fingers, at the speed the state's close time gives them, reach the "
-                                      "object's width while the descending hand is at the veto height (module doc)")),
+                                      "object's width while the descending hand is at the veto height (module doc)"),
+                                Field("close_meets_onset", bool, False, False, "the same judgement made once, at the "
+                                      "step the policy begins its close, and kept while the close lasts: a close begun "
+                                      "where it could not meet the object (a premature one) stays held")),
                         check=lambda c: _check(c))
 
 
