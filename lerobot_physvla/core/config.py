@@ -1,8 +1,10 @@
 """Configuration of the corrector: the action layout and every hyperparameter.
 
-`PhysVLAConfig` is assembled from the fields that belong to no one correction (CORE_FIELDS, LATE_FIELDS:
-mode and layout, the blender, the phase machine, the gripper veto, the place rule, Branch B, the low-pass)
-and the fields each correction declares in its own file (core/corrections/*.py). Its defaults are the
+`PhysVLAConfig` is a plain dataclass whose annotated fields are, in order, the fields that belong to no one correction
+(CORE_FIELDS, LATE_FIELDS: mode and layout, the blender, the phase machine, the gripper veto, the place rule, Branch
+B, the low-pass) and the fields each correction declares in its own file (core/corrections/*.py, `Correction.fields`:
+their meaning, unit, default and paper value). A test holds the class to those declarations (names, order, types,
+defaults), so a new correction is its file plus its lines in the class. Its defaults are the
 shipped default; the paper's values (App. A's hyperparameter table, and the ones SPEC adds: h_lift, the
 layout, the gripper rule, the EL weighting and mode, eps, r0) are `PhysVLAConfig.paper()`. Nothing here
 imports LeRobot; the LeRobot glue turns `--physvla.*` flags into a `PhysVLAConfig`.
@@ -12,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -20,19 +22,33 @@ from lerobot_physvla.core.corrections import CORRECTIONS
 from lerobot_physvla.core.corrections.base import Field
 from lerobot_physvla.core.pose_filter import residual_m
 
+# The choices of the configuration's choice fields: Literal types (what PhysVLAConfig's annotations say, what IDEs
+# and type checkers see) and their values as tuples (what validate() and the flags check against).
 Mode = Literal["baseline", "temporal", "phys", "phys_el"]
-MODES: tuple[str, ...] = ("baseline", "temporal", "phys", "phys_el")
-EL_MODES: tuple[str, ...] = ("soft", "gated", "off")
-WEIGHTINGS: tuple[str, ...] = ("joint_diag", "task_space")
-GRIPPER_RULES: tuple[str, ...] = ("blend", "veto")
-CHUNK_MODES: tuple[str, ...] = ("all", "first")
-PLACE_RULES: tuple[str, ...] = ("decelerate", "redirect", "release_veto")
-PHASE_REFS: tuple[str, ...] = ("eef", "object")
-GEOMETRIES: tuple[str, ...] = ("fixed", "scene")  # the distances as configured, or from the scene (core/geometry.py)
-LOWPASS_RULES: tuple[str, ...] = ("off", "adaptive")
-LOWPASS_SPACES: tuple[str, ...] = ("action", "target")
-LOWPASS_ROUGH: tuple[str, ...] = ("ema", "median")  # the low-pass's roughness estimate (core/lowpass.py)
-LOWPASS_LAGS: tuple[str, ...] = ("trail", "compensate")  # a filtered target's lag behind a steady move
+ElMode = Literal["soft", "gated", "off"]
+Weighting = Literal["joint_diag", "task_space"]
+GripperRule = Literal["blend", "veto"]
+ChunkMode = Literal["all", "first"]
+PlaceRule = Literal["decelerate", "redirect", "release_veto"]
+PhaseRef = Literal["eef", "object"]
+Geometry = Literal["fixed", "scene"]  # the distances as configured, or from the scene (core/geometry.py)
+LowpassRule = Literal["off", "adaptive"]
+LowpassSpace = Literal["action", "target"]
+LowpassRough = Literal["ema", "median"]  # the low-pass's roughness estimate (core/lowpass.py)
+LowpassLag = Literal["trail", "compensate"]  # a filtered target's lag behind a steady move
+AssistStill = Literal["action", "hand"]  # what makes a hold still for the release assist
+MODES: tuple[str, ...] = get_args(Mode)
+EL_MODES: tuple[str, ...] = get_args(ElMode)
+WEIGHTINGS: tuple[str, ...] = get_args(Weighting)
+GRIPPER_RULES: tuple[str, ...] = get_args(GripperRule)
+CHUNK_MODES: tuple[str, ...] = get_args(ChunkMode)
+PLACE_RULES: tuple[str, ...] = get_args(PlaceRule)
+PHASE_REFS: tuple[str, ...] = get_args(PhaseRef)
+GEOMETRIES: tuple[str, ...] = get_args(Geometry)
+LOWPASS_RULES: tuple[str, ...] = get_args(LowpassRule)
+LOWPASS_SPACES: tuple[str, ...] = get_args(LowpassSpace)
+LOWPASS_ROUGH: tuple[str, ...] = get_args(LowpassRough)
+LOWPASS_LAGS: tuple[str, ...] = get_args(LowpassLag)
 PHASE_NAMES: tuple[str, ...] = ("approach", "grasp", "transport", "place")
 
 
@@ -252,8 +268,99 @@ FIELDS: tuple = tuple(f for _, fs in GROUPS for f in fs)
 PAPER: dict = {f.name: f.paper for f in FIELDS if f.paper != f.default}
 
 
-class _Methods:
-    """What PhysVLAConfig does with its fields (the fields: FIELDS, assembled below)."""
+def _doc() -> str:
+    lines = ["The corrector's configuration. `PhysVLAConfig()` is the shipped default, what",
+             "`--policy.postprocess=physvla` applies; `PhysVLAConfig.paper(**changes)` is the paper's main text",
+             "with every option beyond it off; `preset(name, **changes)` any named preset (PRESETS). Every field",
+             "is a `--physvla.<field>` flag; docs/method.md gives its equation, unit and evidence. The fields, by",
+             "concept (a correction's own fields are declared in its file, core/corrections/):", ""]
+    for heading, fields in GROUPS:
+        lines.append(heading.capitalize())
+        lines += [f"    {f.name}: {f.doc}." for f in fields]
+    return "\n".join(lines)
+
+
+@dataclass
+class PhysVLAConfig:
+    # (the docstring is written from the fields' declarations below the class: _doc())
+    # what runs, on which action vector
+    mode: Mode = "phys"
+    layout: str | ActionLayout = "libero_osc_pose"
+    # the blender (eq. 2)
+    cap: float = 0.05
+    phase_caps: tuple[float, ...] = (1.0, 1.0, 0.0, 1.0)
+    chunk_phase_caps: tuple[float, ...] = ()
+    chunk: ChunkMode = "all"
+    gripper_rule: GripperRule = "veto"
+    # the phase machine (eq. 3)
+    geometry: Geometry = "scene"
+    delta_grasp_m: float = 0.06
+    h_lift_m: float = 0.02
+    phase_ref: PhaseRef = "object"
+    # the gripper veto (gripper_rule=veto)
+    veto_height_m: float = 0.06
+    veto_reach_m: float = 0.1
+    veto_reopen: bool = False
+    # the place phase"s correction
+    place_rule: PlaceRule = "release_veto"
+    # the pose the corrections read (the object"s and the target"s)
+    pose_error_m: float = 0.0
+    pose_max_age_steps: int = 5
+    pose_noise_m: float = 0.0
+    # approach_veto (core/corrections/approach_veto.py)
+    veto_close_lead_s: float = 0.0
+    close_meets: bool = False
+    close_meets_onset: bool = False
+    # centre_guide (core/corrections/centre_guide.py)
+    centre_guide: bool = True
+    centre_guide_once: bool = False
+    centre_guide_yield_steps: int = 0
+    centre_guide_trailing: bool = False
+    # grasp_guidance (core/corrections/grasp_guidance.py)
+    beta: float = 0.0
+    grasp_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # lift_assist (core/corrections/lift_assist.py)
+    lift_assist_u: float = 0.5
+    lift_assist_at_rest: bool = True
+    # place_deceleration (core/corrections/place_deceleration.py)
+    d_thresh_m: float = 0.08
+    # place_redirect (core/corrections/place_redirect.py)
+    redirect_gain: float = 0.5
+    redirect_tol_m: float = 0.02
+    # release_assist (core/corrections/release_assist.py)
+    release_assist_m: float = 0.04
+    assist_steps: int = 10
+    assist_still: AssistStill = "hand"
+    release_assist_error_k: float = 1.0
+    # release_veto (core/corrections/release_veto.py)
+    hold_steps: int = 40
+    release_carry: bool = True
+    # rim_guide (core/corrections/rim_guide.py)
+    rim_guide_m: float = 0.047
+    # rim_guide_grasp (core/corrections/rim_guide_grasp.py)
+    rim_guide_into_grasp: bool = False
+    # temporal_ema (core/corrections/temporal_ema.py)
+    alpha_temporal: float = 0.85
+    # transport_smoothing (core/corrections/transport_smoothing.py)
+    lift_bias_m: float = 0.02
+    alpha_transport: float = 0.92
+    # Branch B (eq. 4-6)
+    el_mode: ElMode = "soft"
+    weighting: Weighting = "joint_diag"
+    eps_nm: float = 0.05
+    r0_nm: float = 1.5
+    dls_damping: float = 0.01
+    # the adaptive low-pass (core/lowpass.py)
+    lowpass: LowpassRule = "off"
+    lowpass_phases: str = "approach,grasp,transport,place"
+    lowpass_space: LowpassSpace = "action"
+    lowpass_speed_hi: float = 0.0
+    lowpass_alpha_max: float = 0.6
+    lowpass_rough_lo: float = 0.05
+    lowpass_rough_hi: float = 0.2
+    lowpass_rough: LowpassRough = "ema"
+    lowpass_lag: LowpassLag = "trail"
+
 
     @classmethod
     def paper(cls, **changes) -> PhysVLAConfig:
@@ -325,8 +432,8 @@ class _Methods:
                 c.check(self)
 
     @property
-    def caps(self) -> tuple[float, float, float, float]:
-        """The blender's authority per phase (approach, grasp, transport, place)."""
+    def caps(self) -> tuple[float, ...]:
+        """The blender's authority per phase (approach, grasp, transport, place): 4 values."""
         return tuple(self.phase_caps) if self.phase_caps else (self.cap,) * 4
 
     @property
@@ -344,7 +451,7 @@ class _Methods:
         return self
 
     @property
-    def lowpass_mask(self) -> tuple[bool, bool, bool, bool]:
+    def lowpass_mask(self) -> tuple[bool, ...]:
         names = set(self.lowpass_phases.replace(" ", "").split(","))
         return tuple(p in names for p in PHASE_NAMES)
 
@@ -384,21 +491,7 @@ class _Methods:
         return cls(**d)
 
 
-def _doc() -> str:
-    lines = ["The corrector's configuration. `PhysVLAConfig()` is the shipped default, what",
-             "`--policy.postprocess=physvla` applies; `PhysVLAConfig.paper(**changes)` is the paper's main text",
-             "with every option beyond it off; `preset(name, **changes)` any named preset (PRESETS). Every field",
-             "is a `--physvla.<field>` flag; docs/method.md gives its equation, unit and evidence. The fields, by",
-             "concept (a correction's own fields are declared in its file, core/corrections/):", ""]
-    for heading, fields in GROUPS:
-        lines.append(heading.capitalize())
-        lines += [f"    {f.name}: {f.doc}." for f in fields]
-    return "\n".join(lines)
-
-
-PhysVLAConfig = dataclasses.make_dataclass(
-    "PhysVLAConfig", [(f.name, f.type, dataclasses.field(default=f.default)) for f in FIELDS], bases=(_Methods,),
-    namespace={"__module__": __name__, "__doc__": _doc()})
+PhysVLAConfig.__doc__ = _doc()
 
 
 # Named presets. `default` is what `--policy.postprocess=physvla` applies with no further flag and what

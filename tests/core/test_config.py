@@ -157,3 +157,27 @@ def test_chunk_phase_caps_apply_only_to_a_policy_that_executes_chunks():
     plain = PhysVLAConfig.paper(mode="phys", phase_caps=(0.0, 0.0, 0.0, 1.0))
     assert plain.for_policy(10) is plain  # no chunk caps: the same for every policy
     assert PhysVLAConfig.from_dict(c.to_dict()) == c
+
+
+def test_the_class_is_a_plain_dataclass_that_agrees_with_the_declarations():
+    """PhysVLAConfig's annotated fields are the declared ones (CORE_FIELDS, each correction's Correction.fields,
+    LATE_FIELDS) in order, with their defaults; a choice field is a Literal of the values validate() accepts."""
+    import dataclasses
+    import typing
+
+    from lerobot_physvla.core import config
+
+    fields = dataclasses.fields(PhysVLAConfig)
+    assert [f.name for f in fields] == [f.name for f in config.FIELDS]
+    hints = typing.get_type_hints(PhysVLAConfig)
+    for f, d in zip(fields, config.FIELDS, strict=True):
+        assert f.default == d.default, f.name
+        hint = hints[f.name]
+        if typing.get_origin(hint) is typing.Literal:
+            assert d.type is str and d.default in typing.get_args(hint), f.name
+            with pytest.raises(ValueError, match="choose one of|unknown"):
+                PhysVLAConfig(**{f.name: "no-such-choice"})
+        else:
+            assert hint == d.type, (f.name, hint, d.type)
+    assert "dataclass" in repr(type(PhysVLAConfig.__dataclass_params__)).lower()
+    assert PhysVLAConfig.__doc__.startswith("The corrector's configuration.")
