@@ -223,6 +223,44 @@ def test_a_rule_fails_on_a_complete_cell_and_waits_on_an_incomplete_one():
         cmp.Check.from_dict({"metric": "vibes"})
 
 
+def test_the_competent_policy_check_fails_a_comparison_where_a_competent_policy_loses_pairs(tmp_path):
+    """Every comparison carries COMPETENT unless its study drops it, saying why: a backbone at 80 % or more
+    uncorrected (the comparison's baseline) may lose at most 1 pair net; a weaker one is not held by it."""
+    comp = cmp.COMPETENT
+    strong = _rows([True] * 9 + [False])  # 90 % uncorrected
+    lost2 = {"candidate": _rows([False, False] + [True] * 7 + [False]), "baseline": strong, "n": 10}
+    lost1 = {"candidate": _rows([False] + [True] * 8 + [False]), "baseline": strong, "n": 10}
+    weak_lost2 = {"candidate": _rows([False] * 10), "baseline": _rows([True] * 2 + [False] * 8), "n": 10}
+    assert cmp.evaluate(comp, {"a": lost2}, ["a"]) == (False, "a -2")
+    assert cmp.evaluate(comp, {"a": lost1}, ["a"]) == (True, "a -1")
+    assert cmp.evaluate(comp, {"w": weak_lost2}, ["w"])[0] is True  # 20 % uncorrected: not a competent policy
+    changed = cmp.Check.from_dict({"metric": "changed", "against": "baseline", "max": 0})
+    swapped = {"candidate": _rows([False] + [True] * 9), "baseline": _rows([True] * 9 + [False]), "n": 10}
+    assert cmp.evaluate(changed, {"a": swapped}, ["a"]) == (False, "a 2")  # net 0, yet two pairs changed
+    body = """title = "t"
+[backbones]
+a = {expert = {}}
+[configs]
+baseline = {preset = "paper", mode = "baseline"}
+c = {preset = "default"}
+[blocks]
+b = {scene = "lift", seeds = [0, 1], backbones = ["a"]}
+[[compare]]
+name = "kept"
+candidate = "c"
+confirm = ["b"]
+[[compare]]
+name = "dropped"
+candidate = "c"
+confirm = ["b"]
+competent = "the baseline here is a policy the candidate replaces"
+"""
+    f = tmp_path / "t.toml"
+    f.write_text(body)
+    kept, dropped = Study(f).compares
+    assert kept.checks == [cmp.COMPETENT] and dropped.checks == [] and dropped.competent.startswith("the baseline")
+
+
 def test_kept_is_the_candidates_gain_over_baseline_as_a_fraction_of_the_references():
     kept = cmp.Check.from_dict({"metric": "kept", "min": 0.75})
     base, ref = _rows([False] * 4), _rows([True, True, True, True])  # the reference gains 4
