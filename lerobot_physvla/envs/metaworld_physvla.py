@@ -186,6 +186,9 @@ class MetaworldPhysVLAEnvConfig(MetaworldEnvConfig):
             the target's poses in physvla_state (sources/perception.py; as libero_physvla's); all 0: exact.
         physvla_defaults: the corrector's fields this env needs (its action layout, core/config.py LAYOUTS; Branch
             B's weighting), applied where the flags set none (scripts/lerobot_physvla_eval.py for_env).
+        physvla_options: the options confirmed on this env alone, applied under the shipped presets (default,
+            smooth, arm) where the flags set none: close_meets_onset, the gripper veto's close that meets the object
+            judged from the physics (docs/decisions/28-close-meets.md).
     """
 
     task: str = "pick-place-v3"
@@ -197,6 +200,8 @@ class MetaworldPhysVLAEnvConfig(MetaworldEnvConfig):
     pose_lag_steps: int = 0
     pose_dropout: float = 0.0
     physvla_defaults: ClassVar[dict] = {"layout": "metaworld", "weighting": "task_space"}
+    # confirmed on this env alone (docs/decisions/28-close-meets.md): joins the shipped presets here, not the paper's
+    physvla_options: ClassVar[dict] = {"close_meets_onset": True}
 
     @property
     def perception(self) -> PerceptionConfig:

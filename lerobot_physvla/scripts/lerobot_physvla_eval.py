@@ -95,12 +95,25 @@ def _write_report(out: Path, recorder, pcfg, plots: int = 10) -> None:
     logging.info("physvla: report in %s", md)
 
 
-def for_env(cfg, env_cfg, given=()):
+SHIPPED_PRESETS = ("default", "smooth", "arm")  # the presets an env's own options join (never the paper's readings)
+
+
+def preset_of(overrides) -> str:
+    """The preset the flags resolve to (flags.build_config): --physvla.preset, else the paper's where a mode is
+    named, else the shipped default."""
+    return str(overrides.get("preset") or ("paper" if "mode" in overrides else "default"))
+
+
+def for_env(cfg, env_cfg, given=(), preset_name: str = "default"):
     """The corrector's configuration for the evaluated env: the fields the env needs (its `physvla_defaults`, e.g.
     metaworld_physvla's layout "metaworld" and weighting "task_space", so101_physvla's ActionLayout at its
-    action_scale) where the flags did not set them (`given`:
-    the --physvla.<field> names); `cfg` itself for an env that needs none."""
-    changes = {k: v for k, v in (getattr(env_cfg, "physvla_defaults", None) or {}).items() if k not in set(given)}
+    action_scale) and, under a shipped preset (SHIPPED_PRESETS), the options confirmed on that env alone (its
+    `physvla_options`: metaworld_physvla's close_meets_onset), where the flags did not set them (`given`: the
+    --physvla.<field> names); `cfg` itself for an env that needs none."""
+    fields = dict(getattr(env_cfg, "physvla_defaults", None) or {})
+    if preset_name in SHIPPED_PRESETS:
+        fields.update(getattr(env_cfg, "physvla_options", None) or {})
+    changes = {k: v for k, v in fields.items() if k not in set(given)}
     return cfg.replace(**changes) if changes else cfg
 
 
@@ -139,7 +152,7 @@ def activate_eval(argv: list[str]) -> None:
         return evaluated["env"]
 
     def make_step(actions_per_call: int = 1):  # the configuration for this policy (chunk_phase_caps) and env
-        c = for_env(cfg, evaluated.get("env"), given=overrides)
+        c = for_env(cfg, evaluated.get("env"), given=overrides, preset_name=preset_of(overrides))
         return attach(PhysVLACorrectorStep(config=c.for_policy(actions_per_call).to_dict()))
 
     def before_rollout(step):  # compact the finished rollout batch here, not in the next batch's first tick

@@ -49,6 +49,23 @@ def test_the_corrector_takes_the_envs_layout_and_weighting_unless_the_flags_name
     assert for_env(cfg, LiberoEnv()) is cfg and for_env(cfg, None) is cfg
 
 
+def test_the_close_that_meets_joins_the_shipped_presets_on_metaworld_alone():
+    """close_meets_onset, confirmed on MetaWorld's env alone (docs/decisions/28-close-meets.md), is on there under
+    the shipped presets unless a flag names it, never under the paper's readings, and on no other env."""
+    from lerobot_physvla.core.config import preset
+    from lerobot_physvla.scripts.lerobot_physvla_eval import preset_of
+
+    mw = MetaworldPhysVLAEnvConfig(task="shelf-place-v3")
+    assert PhysVLAConfig().close_meets_onset is False  # the presets do not change
+    for name in ("default", "smooth", "arm"):
+        assert for_env(preset(name), mw, preset_name=name).close_meets_onset is True
+    assert for_env(preset("paper"), mw, preset_name="paper").close_meets_onset is False
+    off = {"close_meets_onset": False}
+    assert for_env(preset("default", **off), mw, given=off, preset_name="default").close_meets_onset is False
+    assert for_env(PhysVLAConfig(), LiberoEnv(), preset_name="default").close_meets_onset is False
+    assert (preset_of({}), preset_of({"mode": "phys"}), preset_of({"preset": "smooth"})) == ("default", "paper", "smooth")
+
+
 def test_state_only_config_drops_cameras_and_adds_the_scene():
     cfg = MetaworldPhysVLAEnvConfig(task="pick-place-v3", cameras=False)
     assert set(cfg.features) == {"action", "agent_pos", "environment_state"}

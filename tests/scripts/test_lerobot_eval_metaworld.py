@@ -89,7 +89,7 @@ def test_metaworlds_own_scripted_policies_under_lerobot_eval_an_unmodelled_task_
         [str(BIN / "lerobot-eval"), f"--policy.path={tmp_path / 'policy'}", f"--output_dir={out}",
          "--env.type=metaworld_physvla", "--env.cameras=false", "--env.raw_obs=true",
          "--env.task=shelf-place-v3,door-open-v3", "--eval.n_episodes=1", "--eval.batch_size=1",
-         "--policy.device=cpu", "--policy.postprocess=physvla", "--physvla.close_meets=true"],
+         "--policy.device=cpu", "--policy.postprocess=physvla"],
         capture_output=True, text=True, timeout=600, env=env, stdin=subprocess.DEVNULL)
     assert r.returncode == 0, r.stderr[-4000:]
     episodes = [json.loads(line) for line in (out / "physvla_episodes.jsonl").read_text().splitlines()]
@@ -102,4 +102,8 @@ def test_metaworlds_own_scripted_policies_under_lerobot_eval_an_unmodelled_task_
     assert [t["task_group"] for t in info["per_task"]] == ["shelf-place-v3", "door-open-v3"]
     assert [e["success"] for e in episodes] == [t["metrics"]["successes"][0] for t in info["per_task"]]
     assert door["success"]  # MetaWorld's door-open policy opens the door, untouched
+    # shelf-place under the shipped default: MetaWorld's env turns on the close that meets (close_meets_onset), so
+    # the policy's close timed to its descent is not held by the height veto (docs/decisions/28-close-meets.md)
+    diag = json.loads((out / "physvla_diagnostics.json").read_text())
+    assert diag["physvla_config"]["close_meets_onset"] is True and shelf["success"]
     assert r.stderr.count("unsupported_goal: door-open-v3 (no grasp-carry-place: a door is pulled)") == 1  # said once
