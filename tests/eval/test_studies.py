@@ -41,7 +41,8 @@ EPISODES = {"table2": 600, "ablation": 350, "place_bias": 60, "lift_sweep": 420,
             "centre_guide_yield": 3274, "learned_goal_ten_long_select": 120,
             "learned_goal_ten_long": 324, "centre_guide_step_gain": 744,
             "learned_metaworld_single": 240, "veto_close_lead": 860,
-            "learned_so101_b128_select": 250, "learned_so101_b128": 500}
+            "learned_so101_b128_select": 250, "learned_so101_b128": 500, "close_meets": 1020, "metaworld50": 1500,
+            "close_meets_onset": 2906, "close_meets_metaworld": 2140}
 
 
 def test_every_study_readme_is_what_its_data_gives():
