@@ -494,6 +494,22 @@ class PhysVLAConfig:
 PhysVLAConfig.__doc__ = _doc()
 
 
+def _declared_as_annotated() -> None:
+    """ImportError naming the line to add or remove where the class's fields are not the declared ones, in order."""
+    have = [f.name for f in dataclasses.fields(PhysVLAConfig)]
+    want = [f.name for f in FIELDS]
+    if have != want:
+        missing = [f for f in FIELDS if f.name not in have]
+        extra = [n for n in have if n not in want]
+        say = "; ".join([f"add `{f.name}: {getattr(f.type, '__name__', f.type)} = {f.default!r}` under its group"
+                         for f in missing] + [f"remove `{n}` (no file declares it)" for n in extra]) or \
+            "order its fields as the declarations are ordered (CORE_FIELDS, the corrections by file name, LATE_FIELDS)"
+        raise ImportError(f"physvla: PhysVLAConfig (core/config.py) and the declared fields differ: {say}")
+
+
+_declared_as_annotated()
+
+
 # Named presets. `default` is what `--policy.postprocess=physvla` applies with no further flag and what
 # PhysVLAConfig() gives, chosen by measurement (docs/method.md "Presets", docs/decisions/); the paper's two
 # readings stay one flag away.

@@ -575,13 +575,21 @@ print(repr(float(Corrector(on, 1)(a, st)[0, 0] - Corrector(off, 1)(a, st)[0, 0])
 
 @pytest.mark.slow
 def test_a_new_correction_is_its_file(tmp_path):
-    """A file in core/corrections declaring its slots, its fields and a Correction is all it takes: its field
-    is a PhysVLAConfig field and a --physvla flag, its parameter reaches its kernel, and the assembled
-    dispatch calls it in its phase (grasp here), after the paper's grasp guidance."""
+    """A file in core/corrections declaring its slots, its fields and a Correction, and its field's line in the
+    PhysVLAConfig class, is all it takes: its field is a PhysVLAConfig field and a --physvla flag, its parameter
+    reaches its kernel, and the assembled dispatch calls it in its phase (grasp here), after the paper's grasp
+    guidance. Without the class's line, importing the package says which line to add."""
     shutil.copytree(PKG / "lerobot_physvla", tmp_path / "lerobot_physvla",
                     ignore=shutil.ignore_patterns("__pycache__"))
     (tmp_path / "lerobot_physvla/core/corrections/zz_demo.py").write_text(_NEW_CORRECTION)
     env = {"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    r = subprocess.run([sys.executable, "-c", _NEW_PROBE], env=env, capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode != 0 and "add `demo_shift_u: float = 0.0` under its group" in r.stderr
+    config = tmp_path / "lerobot_physvla/core/config.py"
+    text = config.read_text()
+    anchor = "    # Branch B (eq. 4-6)\n"  # the corrections' fields come before Branch B's; zz_demo's last of them
+    assert text.count(anchor) == 1
+    config.write_text(text.replace(anchor, "    demo_shift_u: float = 0.0\n" + anchor))
     r = subprocess.run([sys.executable, "-c", _NEW_PROBE], env=env, capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr[-3000:]
     shift, default = r.stdout.strip().splitlines()[-1].split()
