@@ -8,12 +8,14 @@ and no import cycle anywhere in lerobot_physvla, function-level (lazy) imports i
 from __future__ import annotations
 
 import ast
+import re
 import sys
 from pathlib import Path
 
 import pytest
 
-PKG = Path(__file__).resolve().parents[1] / "lerobot_physvla"
+ROOT = Path(__file__).resolve().parents[1]
+PKG = ROOT / "lerobot_physvla"
 NAME = "lerobot_physvla"
 RANK = {
     "core": 0,
@@ -131,3 +133,13 @@ def test_every_module_has_a_layer_and_imports_only_its_own_or_lower():
 def test_no_import_cycle_in_the_package():
     cycle = find_cycle(internal_graph())
     assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def test_the_readme_stays_a_product_page():
+    """README.md is held to 12,000 bytes (the full tables live in docs/results.md, the path to each decision in
+    docs/decisions/), and every relative link in it resolves to a file of the repository."""
+    readme = ROOT / "README.md"
+    assert readme.stat().st_size <= 12_000, f"README.md is {readme.stat().st_size} bytes; move detail to docs/"
+    links = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", readme.read_text())
+    relative = [x for x in links if "://" not in x]
+    assert relative and not [x for x in relative if not (ROOT / x).exists()]
