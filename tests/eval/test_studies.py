@@ -409,3 +409,21 @@ def test_blocks_restricts_a_run_to_the_blocks_named():
     assert run.only_blocks(study, cells, None) == cells
     with pytest.raises(SystemExit, match="no block.*its blocks: goal, ten"):
         run.only_blocks(study, cells, "goal,nope")
+
+
+def test_every_made_by_names_a_script_that_exists_or_the_commit_it_ran_at():
+    """A study's made_by is the command that made its episodes: its script is in the repository, or the line names
+    the commit it ran at ("(at <commit>) ...") and the script is there in that commit."""
+    import subprocess
+
+    for f in sorted(study_mod.STUDIES.glob("*.toml")):
+        for line in Study(f).made_by:
+            at = re.match(r"\(at ([0-9a-f]{7,40})\) ", line)
+            for script in re.findall(r"\b((?:eval|backbones|tools)/[\w/]+\.py)\b", line):
+                if at:  # in a clone that holds that commit (a shallow one may not), the script is there
+                    have = subprocess.run(["git", "cat-file", "-e", f"{at.group(1)}^{{commit}}"], cwd=ROOT,
+                                          capture_output=True).returncode == 0
+                    r = subprocess.run(["git", "cat-file", "-e", f"{at.group(1)}:{script}"], cwd=ROOT, capture_output=True)
+                    assert r.returncode == 0 or not have, (f.name, line)
+                else:
+                    assert (ROOT / script).is_file(), (f.name, line)
