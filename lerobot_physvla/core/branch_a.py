@@ -34,7 +34,7 @@ import numpy as np
 from numba import njit
 
 from lerobot_physvla.core.corrections import CORRECTIONS, slots
-from lerobot_physvla.core.corrections.approach_veto import timed_close
+from lerobot_physvla.core.corrections.approach_veto import MEETS, MEETS_ONSET, timed_close
 from lerobot_physvla.core.corrections.base import (D_OBJ_XY, D_TGT_XY, EEF, FINGERS, HIGH, LIFT, LOW, N_GEO, OBJ,
                                                    PHASE_REF_OBJECT, POSE_MAX_AGE, POSE_NOISE_M, TGT)
 from lerobot_physvla.core.corrections.release_veto import RELEASE_CARRY, carried_phase
@@ -190,7 +190,7 @@ def _compile(key: int):
             for j in range(o[13]):
                 v_z += row[o[12] + 2 * o[13] + j] * row[o[8] + j]
             t_meet = -1.0  # the time left until the fingers are the object's width apart (s; -1: unknown)
-            if o[6] >= 0:  # corrections/approach_veto.py: T_close (o - w) / (span - w)
+            if o[6] >= 0 and (q[MEETS] > 0.5 or q[MEETS_ONSET] > 0.5):  # approach_veto.py: T_close (o - w) / (span - w)
                 t_close, w, span = row[o[6] + N_SCENE], 2.0 * row[o[6] + 1], row[o[6] + 4]
                 if t_close > 0.0 and w > 0.0 and span > w:
                     t_meet = t_close * min(max((row[FINGERS_AT] - w) / (span - w), 0.0), 1.0)

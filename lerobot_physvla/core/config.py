@@ -301,9 +301,9 @@ class PhysVLAConfig:
     veto_height_m: float = 0.06
     veto_reach_m: float = 0.1
     veto_reopen: bool = False
-    # the place phase"s correction
+    # the place phase's correction
     place_rule: PlaceRule = "release_veto"
-    # the pose the corrections read (the object"s and the target"s)
+    # the pose the corrections read (the object's and the target's)
     pose_error_m: float = 0.0
     pose_max_age_steps: int = 5
     pose_noise_m: float = 0.0

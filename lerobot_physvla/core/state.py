@@ -183,10 +183,8 @@ class PhysState:
         if flat is not None:
             return flat
         b = self.batch_size
-        parts = [np.asarray(np.nan if getattr(self, name) is None else getattr(self, name), dtype=np.float64)
-                 .reshape(-1, 1 if getattr(self, name) is None else int(np.prod(shape(self.n_joints), dtype=int)))
-                 for name, shape in _FIELDS]
-        parts = [np.broadcast_to(x, (b, x.shape[1])) for x in parts]
+        parts = [np.full((b, 1), np.nan) if getattr(self, name) is None  # close_time not given: unmeasured
+                 else np.asarray(getattr(self, name), dtype=np.float64).reshape(b, -1) for name, _ in _FIELDS]
         return np.concatenate(parts, axis=1)
 
     @classmethod
