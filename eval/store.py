@@ -29,6 +29,9 @@ NEUTRAL = {"pose_error_m": 0.0, "pose_max_age_steps": 5, "geometry": "fixed", "v
            "pose_noise_m": 0.0, "centre_guide": False, "centre_guide_once": False, "release_assist_error_k": 0.0,
            "centre_guide_yield_steps": 0, "centre_guide_trailing": True, "close_meets": False,
            "close_meets_onset": False}
+# fields renamed after episodes were first stored (core/config.py ALIASES): hashed under their first names, and
+# the saved form's `version` left out, so a rename or a new version keeps every configuration's hash
+HASHED_AS = {"place_tol_m": "redirect_tol_m"}
 PERCEPTION = "perception"  # a study configuration's perception faults (sources/perception.py), kept beside it
 
 
@@ -55,6 +58,8 @@ def effective(config: dict) -> dict:
         c = c.replace(centre_guide=False, centre_guide_once=False, centre_guide_yield_steps=0,
                       centre_guide_trailing=True)
     d = c.to_dict()
+    del d["version"]
+    d = {HASHED_AS.get(k, k): v for k, v in d.items()}
     for k, v in NEUTRAL.items():
         if d[k] == v:
             del d[k]

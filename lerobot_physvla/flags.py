@@ -4,12 +4,12 @@
     --physvla.preset=<name>               start from a named preset (core.config.PRESETS):
                                           default | paper | paper_alg1 | smooth | arm
     --physvla.<field>=<value>             any PhysVLAConfig field (mode, cap, weighting, ...)
+    --physvla.help                        print every field (group, type, default, meaning) and exit
 
-Which configuration the flags build:
-- no preset and no mode: the `default` preset (the evidence-chosen default, docs/method.md);
-- `--physvla.mode=<mode>` without a preset: that mode of the paper (main-text settings, the
-  `paper` preset), so the paper's modes stay one flag away;
-- `--physvla.preset=<name>`: that preset; any other `--physvla.*` flag overrides its field.
+Which configuration the flags build: the preset `--physvla.preset` names (without one: `default`, the
+evidence-chosen default, docs/method.md; lerobot-rollout: `arm`), and each `--physvla.<field>` changes that
+field alone (`--physvla.mode=phys_el` is the default with Branch B on; the paper's main text is
+`--physvla.preset=paper`). Old field names (core/config.py ALIASES) are accepted with a warning.
 
 lerobot's own parser rejects unknown flags, so they are taken out of argv before it runs.
 """
@@ -17,12 +17,15 @@ lerobot's own parser rejects unknown flags, so they are taken out of argv before
 from __future__ import annotations
 
 import dataclasses
+import types
 import typing
 
-from lerobot_physvla.core.config import DEFAULT_PRESET, PRESETS, PhysVLAConfig, preset
+from lerobot_physvla.core.config import (ALIASES, DEFAULT_PRESET, EXPERIMENTAL_GROUP, GROUPS, PRESETS, PhysVLAConfig,
+                                         differing, preset, renamed)
 
 POSTPROCESS_FLAG = "--policy.postprocess"
 PREFIX = "--physvla."
+HELP_FLAG = "--physvla.help"
 CHOICES = ("physvla", "none")
 
 
@@ -63,6 +66,10 @@ def split_argv(argv: list[str], robot: bool = False) -> tuple[str | None, dict[s
     """(postprocess choice or None, PhysVLAConfig overrides (and, with robot, ROBOT_FLAGS values),
     argv without our flags)."""
     types = {**_field_types(), **(ROBOT_FLAGS if robot else {})}
+    types.update({old: types[new] for old, new in ALIASES.items()})
+    if HELP_FLAG in argv:
+        print(help_text(robot))
+        raise SystemExit(0)
     post, overrides, rest = None, {}, []
     it = iter(range(len(argv)))
     skip = False
@@ -93,16 +100,57 @@ def split_argv(argv: list[str], robot: bool = False) -> tuple[str | None, dict[s
                 overrides[name] = _convert(name, value, types[name])
         else:
             rest.append(arg)
-    return post, overrides, rest
+    return post, renamed(overrides), rest
+
+
+def _type_name(hint) -> str:
+    args, origin = typing.get_args(hint), typing.get_origin(hint)
+    if origin is typing.Literal:
+        return " | ".join(map(str, args))
+    if origin is types.UnionType or origin is typing.Union:
+        return " | ".join(_type_name(a) for a in args)
+    if origin is tuple:
+        return "[" + ", ".join("..." if a is Ellipsis else _type_name(a) for a in args) + "]"
+    return getattr(hint, "__name__", None) or str(hint).replace("typing.", "")
+
+
+def help_text(robot: bool = False) -> str:
+    """Every `--physvla.*` flag: by group, each field's type, default (the `default` preset) and meaning; the
+    experimental fields apart; with `robot`, the robot step's flags (lerobot-rollout)."""
+    types, d = _field_types(), PhysVLAConfig()
+    lines = ["--physvla.* flags (lerobot-physvla). --physvla.preset=<name> picks the starting point: "
+             + ", ".join(PRESETS) + f" (without it: {DEFAULT_PRESET}{'; lerobot-rollout: arm' if robot else ''}); "
+             "each --physvla.<field>=<value> then changes that field alone. Defaults below are the default preset's.",
+             ""]
+    for heading, fields in GROUPS:
+        lines.append(("EXPERIMENTAL (" + heading.partition(": ")[2] + ")") if heading == EXPERIMENTAL_GROUP
+                     else heading.capitalize())
+        for f in fields:
+            note = f"  [{f.experimental}]" if f.experimental else ""
+            lines.append(f"  --physvla.{f.name}  ({_type_name(types[f.name])}, default {getattr(d, f.name)!r})"
+                         f"  {f.doc}{note}")
+        lines.append("")
+    if ALIASES:
+        lines.append("Old names, accepted with a warning: " + ", ".join(f"{o} -> {n}" for o, n in ALIASES.items()))
+    if robot:
+        lines += ["", "The robot step (lerobot-rollout): " + ", ".join(f"--physvla.{k}" for k in ROBOT_FLAGS)
+                  + " (docs/arms.md)"]
+    return "\n".join(lines)
+
+
+def describe(cfg: PhysVLAConfig, overrides: dict[str, object], default: str = DEFAULT_PRESET) -> str:
+    """One line: the preset the flags resolved to and the fields that differ from it."""
+    name = str(overrides.get("preset") or default)
+    diff = differing(cfg, name)
+    said = ", ".join(f"{k}={v!r}" for k, v in diff.items()) if diff else "none"
+    return f"lerobot-physvla: preset {name}; fields that differ from it: {said}"
 
 
 def build_config(overrides: dict[str, object], default: str = DEFAULT_PRESET) -> PhysVLAConfig:
-    """The configuration the flags ask for (module doc: the `default` preset, paper mode, or
-    preset); `default` names the preset used when no flag names one (lerobot-rollout: `arm`)."""
+    """The configuration the flags ask for (module doc): the preset they name, else `default` (lerobot-rollout:
+    `arm`), with each named field changed."""
     overrides = dict(overrides)
-    name = overrides.pop("preset", None)
-    if name is None:
-        name = "paper" if "mode" in overrides else default
+    name = overrides.pop("preset", None) or default
     try:
         return preset(name, **overrides)
     except (ValueError, TypeError) as e:

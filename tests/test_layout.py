@@ -136,12 +136,105 @@ def test_no_import_cycle_in_the_package():
 
 
 @pytest.mark.parametrize("page, limit", [("README.md", 12_000), ("docs/method.md", 35_000)])
-def test_the_product_pages_stay_their_size_and_their_links_resolve(page, limit):
+def test_the_product_pages_stay_their_size(page, limit):
     """README.md (a product page: the full tables live in docs/results.md) and docs/method.md (the reference: the
-    path to each decision lives in docs/decisions/) are held to their sizes, and every relative link in them
-    resolves to a file of the repository."""
+    path to each decision lives in docs/decisions/) are held to their sizes."""
     path = ROOT / page
     assert path.stat().st_size <= limit, f"{page} is {path.stat().st_size} bytes (<= {limit}); move detail out"
-    links = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", path.read_text())
-    relative = [x for x in links if "://" not in x]
-    assert relative and not [x for x in relative if not (path.parent / x).exists()]
+
+
+FENCE = re.compile(r"^ {0,3}(`{3,}|~{3,})")
+INLINE_LINK = re.compile(r"\]\(\s*<?([^()<>\s]+)>?(?:\s+(?:\"[^\"]*\"|'[^']*'))?\s*\)")
+REFERENCE_LINK = re.compile(r"^ {0,3}\[[^\]]+\]:\s*<?(\S+?)>?(?:\s|$)")
+HEADING = re.compile(r"^ {0,3}(#{1,6})\s+(.*?)(?:\s+#+)?\s*$")
+HTML_ANCHOR = re.compile(r"<a\s+(?:name|id)=[\"']([^\"']+)[\"']", re.I)
+
+
+def markdown_files() -> list[Path]:
+    """Every markdown file of the repository: tracked, and new ones git does not ignore (git ls-files)."""
+    import subprocess
+
+    try:
+        out = subprocess.run(["git", "ls-files", "--cached", "--others", "--exclude-standard", "*.md"], cwd=ROOT,
+                             capture_output=True, text=True, check=True).stdout.split("\n")
+    except (OSError, subprocess.CalledProcessError):  # not a git checkout: every markdown file outside hidden folders
+        return sorted(p for p in ROOT.rglob("*.md")
+                      if not any(s.startswith(".") or s == "outputs" for s in p.relative_to(ROOT).parts))
+    return sorted({ROOT / f for f in out if f and (ROOT / f).is_file()})
+
+
+def prose_lines(text: str) -> list[str]:
+    """The file's lines with fenced code blocks blanked (line numbers kept)."""
+    out, fence = [], None
+    for line in text.splitlines():
+        m = FENCE.match(line)
+        if fence is None and m:
+            fence = m.group(1)[0] * len(m.group(1))
+        elif fence is not None and m and m.group(1).startswith(fence) and not line.strip()[len(m.group(1)):]:
+            fence = None
+        elif fence is None:
+            out.append(line)
+            continue
+        out.append("")
+    return out
+
+
+def slug(heading: str) -> str:
+    """GitHub's anchor for a heading: its text (links and tags dropped) lowercased, every character but letters,
+    digits, '_', '-' and spaces removed, spaces turned into '-'."""
+    text = re.sub(r"!?\[([^\]]*)\]\([^)]*\)", r"\1", heading)
+    text = re.sub(r"<[^>]+>", "", text)
+    return re.sub(r"[^\w\- ]", "", text.strip().lower()).replace(" ", "-")
+
+
+def anchors(path: Path, _cache: dict = {}) -> set[str]:  # noqa: B006 - a cache for the one test run
+    if path not in _cache:
+        seen: dict[str, int] = {}
+        found = set()
+        for line in prose_lines(path.read_text()):
+            found.update(HTML_ANCHOR.findall(line))
+            if m := HEADING.match(line):
+                s = slug(m.group(2))
+                found.add(f"{s}-{seen[s]}" if s in seen else s)
+                seen[s] = seen.get(s, 0) + 1
+        _cache[path] = found
+    return _cache[path]
+
+
+def broken_links(path: Path) -> list[str]:
+    """Each relative link (`file`, `file#anchor`, `#anchor`) in a markdown file that does not resolve; http(s) and
+    other schemes, inline code and fenced code blocks are skipped."""
+    from urllib.parse import unquote
+
+    bad = []
+    for n, line in enumerate(prose_lines(path.read_text()), 1):
+        line = re.sub(r"(`+).*?\1", "", line)  # inline code
+        for target in INLINE_LINK.findall(line) + REFERENCE_LINK.findall(line):
+            if re.match(r"^[a-zA-Z][a-zA-Z0-9+.-]*:", target):
+                continue
+            file, _, anchor = target.partition("#")
+            dest = (path.parent / unquote(file)).resolve() if file else path
+            where = f"{path.relative_to(ROOT)}:{n}: ({target})"
+            if not dest.exists():
+                bad.append(f"{where} no such file")
+            elif anchor and dest.suffix == ".md" and unquote(anchor) not in anchors(dest):
+                bad.append(f"{where} no heading with that anchor in {dest.relative_to(ROOT)}")
+    return bad
+
+
+def test_anchor_slugs_are_githubs():
+    assert slug("Presets -- `core/config.py` `PRESETS`") == "presets----coreconfigpy-presets"
+    assert slug("Pose error -- `pose_error_m`, `sources/perception.py`") == "pose-error----pose_error_m-sourcesperceptionpy"
+    assert slug("Blender (eq. 2) and [per-phase](x.md) authority") == "blender-eq-2-and-per-phase-authority"
+    lines = prose_lines("# A\n```\n# not a heading [x](nowhere.md)\n```\n## A\n")
+    assert lines == ["# A", "", "", "", "## A"]
+
+
+def test_every_relative_link_and_anchor_in_the_markdown_resolves():
+    """Every relative link in every markdown file of the repository (README.md, docs/, docs/decisions/, eval/, the
+    study READMEs, backbones/, configs/) names a file that exists and, with '#anchor', a heading of that file (or of
+    the same file): GitHub's slugs, the n-th repeat of a heading taking '-n'."""
+    files = markdown_files()
+    assert {"README.md", "docs/method.md", "docs/lerobot_eval.md"} <= {str(p.relative_to(ROOT)) for p in files}
+    bad = [b for p in files for b in broken_links(p)]
+    assert not bad, "broken links:\n" + "\n".join(bad)

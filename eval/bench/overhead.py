@@ -567,7 +567,7 @@ def main() -> None:
         f"p99 / max over the calls after the first. Episodes: {args.eval_episodes} at B = 1, "
         f"{8 * args.eval_episodes} at B = 8; each row ran {args.eval_repeats} times, interleaved with the others, "
         "and shows the run with the median p50 (the p50 of every run in the last column). The max is the first tick of a rollout batch, right after lerobot-eval "
-        "reset the envs: the recorder then reduces the finished batch's episodes to their records (docs/eval.md). "
+        "reset the envs: the recorder then reduces the finished batch's episodes to their records (docs/lerobot_eval.md). "
         f"*{FLOOR}*: the same three places doing the least they could: the read hands back the build-time packed "
         "row through one trivial compiled call, the capture step is the shipped one (it only takes the state out of "
         "the observation), and the corrector step converts the action to numpy, makes one trivial compiled call and "

@@ -13,6 +13,7 @@ imports LeRobot; the LeRobot glue turns `--physvla.*` flags into a `PhysVLAConfi
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from dataclasses import dataclass
 from typing import Literal, get_args
 
@@ -227,6 +228,9 @@ CORE_FIELDS: tuple = (
     )),
     ("the place phase's correction", (
         Field("place_rule", str, "release_veto", "decelerate", "decelerate (eq. 5) | redirect | release_veto"),
+        Field("place_tol_m", float, 0.02, 0.0, "on target: the held object's centre within this of the target's (the "
+              "release veto holds back a release beyond it, the redirect steers only beyond it, the release assist "
+              "lets go within it), m; was redirect_tol_m"),
     )),
     ("the pose the corrections read (the object's and the target's)", (
         Field("pose_error_m", float, 0.0, 0.0, "how far the poses may be off, a bound on |perceived - true| (e.g. "
@@ -253,19 +257,89 @@ LATE_FIELDS: tuple = (  # after the corrections' own
               "the phases where it acts (comma-separated)"),
         Field("lowpass_space", str, "action", "action", "action | target: the increments, or the position they command"),
         Field("lowpass_speed_hi", float, 0.0, 0.0, "it fades out as the policy's speed reaches this, action units per "
-              "step; 0 = off"),
+              "step; 0 = off",
+              experimental="failed its confirmation, in no preset: docs/decisions/07-target-lowpass.md"),
         Field("lowpass_alpha_max", float, 0.6, 0.6, "its strongest smoothing factor, in [0, 1)"),
         Field("lowpass_rough_lo", float, 0.05, 0.05, "the roughness where it starts acting, action units"),
         Field("lowpass_rough_hi", float, 0.2, 0.2, "the roughness where it reaches alpha_max, action units"),
         Field("lowpass_rough", str, "ema", "ema", "ema | median: the roughness estimate"),
-        Field("lowpass_lag", str, "trail", "trail", "trail | compensate: a filtered target's lag behind a steady move"),
+        Field("lowpass_lag", str, "trail", "trail", "trail | compensate: a filtered target's lag behind a steady move",
+              experimental="compensate failed its confirmation, in no preset: docs/decisions/13-robust-lowpass.md", experimental_values=("compensate",)),
     )),
 )
-GROUPS: tuple = (*CORE_FIELDS, *((f"{c.name} (core/corrections/{c.name}.py)", c.fields) for c in CORRECTIONS
-                                 if c.fields), *LATE_FIELDS)
+_DECLARED: tuple = (*CORE_FIELDS, *((f"{c.name} (core/corrections/{c.name}.py)", c.fields) for c in CORRECTIONS
+                                    if c.fields), *LATE_FIELDS)
+EXPERIMENTAL_GROUP = "experimental: failed their confirmation, in no preset; warned of once when set"
+# The fields by concept, in the class's order: each group's kept fields, then the experimental fields (a Field whose
+# `experimental` says why and which has no experimental_values: the whole field is experimental) in one group.
+GROUPS: tuple = (*((h, kept) for h, fs in _DECLARED
+                   if (kept := tuple(f for f in fs if not (f.experimental and not f.experimental_values)))),
+                 (EXPERIMENTAL_GROUP, tuple(f for _, fs in _DECLARED for f in fs
+                                            if f.experimental and not f.experimental_values)))
 FIELDS: tuple = tuple(f for _, fs in GROUPS for f in fs)
 # What the paper's main text sets where the shipped default departs from it.
 PAPER: dict = {f.name: f.paper for f in FIELDS if f.paper != f.default}
+
+# The saved form (to_dict, a policy_postprocessor.json) carries CONFIG_VERSION. A dict without a version that holds
+# every field of the first saved form (SAVED_V0, lerobot-physvla 0.1) is a file saved before versions: version 0.
+# from_dict brings a saved dict up one version at a time (UPGRADES[v]: its renamed fields, then the fields it lacks
+# at the value that keeps it acting as it did), then fills what is still unnamed from the shipped default. Adding a
+# field means a new version: CONFIG_VERSION + 1 and an UPGRADES entry giving the field's value from before it.
+CONFIG_VERSION = 1
+SAVED_V0 = frozenset({"alpha_temporal", "alpha_transport", "beta", "cap", "chunk", "d_thresh_m", "delta_grasp_m",
+                      "dls_damping", "el_mode", "eps_nm", "grasp_offset_m", "gripper_rule", "h_lift_m", "layout",
+                      "lift_bias_m", "mode", "r0_nm", "weighting"})
+# {version: ({old name: new name}, {field: value for a dict of that version without it})}. Version 0 -> 1: every
+# field added after the paper's main text took its paper value (the option off) until it existed.
+UPGRADES: dict[int, tuple[dict, dict]] = {0: ({"redirect_tol_m": "place_tol_m"}, PAPER)}
+# Renamed fields: their old names, accepted with a warning (once) wherever names are given.
+ALIASES: dict[str, str] = {"redirect_tol_m": "place_tol_m"}
+_WARNED: set = set()
+
+
+def _warn_once(key: str, message: str) -> None:
+    if key not in _WARNED:
+        _WARNED.add(key)
+        warnings.warn(message, UserWarning, stacklevel=4)
+
+
+def renamed(changes: dict) -> dict:
+    """`changes` with old field names (ALIASES) replaced by their new ones, each warned of once."""
+    out = dict(changes)
+    for old, new in ALIASES.items():
+        if old in out:
+            _warn_once(f"alias:{old}", f"physvla: {old} is now {new}; the old name will go in a later version")
+            if new in out:
+                raise ValueError(f"physvla: {old} and {new} are one field ({new}); give it once")
+            out[new] = out.pop(old)
+    return out
+
+
+def upgraded(d: dict) -> dict:
+    """A saved or partial configuration dict as the current version names it (module note above CONFIG_VERSION):
+    a saved dict's missing fields at what they were before they existed; a partial one's left unnamed."""
+    d = dict(d)
+    version = d.pop("version", None)
+    if version is None:
+        version = 0 if SAVED_V0 <= d.keys() else CONFIG_VERSION
+    if not (isinstance(version, int) and 0 <= version <= CONFIG_VERSION):
+        raise ValueError(f"physvla: configuration version {version!r} is not one this lerobot-physvla reads "
+                         f"(0 .. {CONFIG_VERSION}); a newer one saved it: upgrade lerobot-physvla")
+    for v in range(version, CONFIG_VERSION):
+        names, before = UPGRADES[v]
+        d = {names.get(k, k): x for k, x in d.items()}
+        d = {**before, **d}
+    return renamed(d)
+
+
+def experimental_set(c) -> list[str]:
+    """The experimental options (Field.experimental) configuration `c` sets, as `name=value`."""
+    out = []
+    for f in FIELDS_BY_NAME.values():
+        v = getattr(c, f.name)
+        if f.experimental and (v in f.experimental_values if f.experimental_values else v != f.default):
+            out.append(f"{f.name}={v!r}")
+    return out
 
 
 def _doc() -> str:
@@ -303,18 +377,15 @@ class PhysVLAConfig:
     veto_reopen: bool = False
     # the place phase's correction
     place_rule: PlaceRule = "release_veto"
+    place_tol_m: float = 0.02
     # the pose the corrections read (the object's and the target's)
     pose_error_m: float = 0.0
     pose_max_age_steps: int = 5
     pose_noise_m: float = 0.0
     # approach_veto (core/corrections/approach_veto.py)
-    veto_close_lead_s: float = 0.0
-    close_meets: bool = False
     close_meets_onset: bool = False
     # centre_guide (core/corrections/centre_guide.py)
     centre_guide: bool = True
-    centre_guide_once: bool = False
-    centre_guide_yield_steps: int = 0
     centre_guide_trailing: bool = False
     # grasp_guidance (core/corrections/grasp_guidance.py)
     beta: float = 0.0
@@ -326,7 +397,6 @@ class PhysVLAConfig:
     d_thresh_m: float = 0.08
     # place_redirect (core/corrections/place_redirect.py)
     redirect_gain: float = 0.5
-    redirect_tol_m: float = 0.02
     # release_assist (core/corrections/release_assist.py)
     release_assist_m: float = 0.04
     assist_steps: int = 10
@@ -337,8 +407,6 @@ class PhysVLAConfig:
     release_carry: bool = True
     # rim_guide (core/corrections/rim_guide.py)
     rim_guide_m: float = 0.047
-    # rim_guide_grasp (core/corrections/rim_guide_grasp.py)
-    rim_guide_into_grasp: bool = False
     # temporal_ema (core/corrections/temporal_ema.py)
     alpha_temporal: float = 0.85
     # transport_smoothing (core/corrections/transport_smoothing.py)
@@ -354,21 +422,30 @@ class PhysVLAConfig:
     lowpass: LowpassRule = "off"
     lowpass_phases: str = "approach,grasp,transport,place"
     lowpass_space: LowpassSpace = "action"
-    lowpass_speed_hi: float = 0.0
     lowpass_alpha_max: float = 0.6
     lowpass_rough_lo: float = 0.05
     lowpass_rough_hi: float = 0.2
     lowpass_rough: LowpassRough = "ema"
     lowpass_lag: LowpassLag = "trail"
-
+    # experimental: options that failed their confirmation and sit in no preset (each field's `experimental` says
+    # why); settable, warned of once when set, listed apart in --physvla.help
+    veto_close_lead_s: float = 0.0
+    close_meets: bool = False
+    centre_guide_once: bool = False
+    centre_guide_yield_steps: int = 0
+    rim_guide_into_grasp: bool = False
+    lowpass_speed_hi: float = 0.0
 
     @classmethod
     def paper(cls, **changes) -> PhysVLAConfig:
         """The paper's main text (eq. 2 with c = 0.05, Phys + Dyn: phys_el), every option beyond it off."""
-        return cls(**{**PAPER, **changes})
+        return cls(**{**PAPER, **renamed(changes)})
 
     def __post_init__(self) -> None:
         self.validate()
+        for name in experimental_set(self):
+            f = FIELDS_BY_NAME[name.partition("=")[0]]
+            _warn_once(f"experimental:{name}", f"physvla: {name} is experimental ({f.experimental})")
 
     def validate(self) -> None:
         """ValueError (one line, saying what to set) for a configuration the corrector cannot run; the
@@ -424,6 +501,8 @@ class PhysVLAConfig:
         if not (isinstance(self.pose_max_age_steps, int) and self.pose_max_age_steps >= 0):
             raise ValueError(f"physvla: pose_max_age_steps must be an int >= 0 (control steps), got "
                              f"{self.pose_max_age_steps!r}")
+        if not 0.0 <= self.place_tol_m < float("inf"):
+            raise ValueError(f"physvla: place_tol_m must be a finite distance >= 0 (m), got {self.place_tol_m}")
         if not (self.veto_height_m >= 0 and self.veto_reach_m >= 0):
             raise ValueError(f"physvla: need veto_height_m >= 0 and veto_reach_m >= 0, got {self.veto_height_m}, "
                              f"{self.veto_reach_m}")
@@ -460,10 +539,11 @@ class PhysVLAConfig:
         return LAYOUTS[self.layout] if isinstance(self.layout, str) else self.layout
 
     def replace(self, **changes) -> PhysVLAConfig:
-        return dataclasses.replace(self, **changes)
+        return dataclasses.replace(self, **renamed(changes))
 
     def to_dict(self) -> dict:
-        d = dataclasses.asdict(self)
+        """The saved form: every field, and `version` (CONFIG_VERSION)."""
+        d = {"version": CONFIG_VERSION, **dataclasses.asdict(self)}
         if isinstance(self.layout, ActionLayout):
             d["layout"] = dataclasses.asdict(self.layout)
         d["grasp_offset_m"] = list(self.grasp_offset_m)
@@ -473,10 +553,10 @@ class PhysVLAConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> PhysVLAConfig:
-        """From to_dict()'s form (a saved policy_postprocessor.json, a flag set). A field the dict does not
-        hold takes the value it had before it existed, the paper's (PAPER): a configuration saved by an
-        older version acts as it did."""
-        d = {**PAPER, **dict(d)}
+        """From to_dict()'s form (a saved policy_postprocessor.json) or a partial dict ({"cap": 0.1}): a saved
+        file of an older version acts as it did (`upgraded`: its missing fields at their values from before they
+        existed, old names renamed); the fields nobody named are the shipped default's."""
+        d = upgraded(d)
         unknown = set(d) - {f.name for f in dataclasses.fields(cls)}
         if unknown:
             raise ValueError(f"physvla: unknown config keys {sorted(unknown)}")
@@ -492,6 +572,7 @@ class PhysVLAConfig:
 
 
 PhysVLAConfig.__doc__ = _doc()
+FIELDS_BY_NAME: dict = {f.name: f for f in FIELDS}
 
 
 def _declared_as_annotated() -> None:
@@ -552,3 +633,9 @@ def preset(name: str = DEFAULT_PRESET, **overrides) -> PhysVLAConfig:
     if name not in PRESETS:
         raise ValueError(f"physvla: unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
     return PRESETS[name].replace(**overrides)
+
+
+def differing(c: PhysVLAConfig, name: str) -> dict:
+    """{field: value} where `c` departs from preset `name`."""
+    base = PRESETS[name]
+    return {f.name: getattr(c, f.name) for f in FIELDS if getattr(c, f.name) != getattr(base, f.name)}

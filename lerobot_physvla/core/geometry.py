@@ -38,7 +38,7 @@ from numba import njit
 
 from lerobot_physvla.core.corrections.base import POSE_ERROR_M
 from lerobot_physvla.core.corrections.centre_guide import CENTRE_SLACK_M, NO_PULL_M
-from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M
+from lerobot_physvla.core.corrections.place_redirect import PLACE_TOL_M
 from lerobot_physvla.core.corrections.release_veto import CARRY_REACH_M
 from lerobot_physvla.core.corrections.rim_guide import RIM_GUIDE_M, RIM_HEIGHT_M, RIM_REACH_M, RIM_SLACK_M
 
@@ -79,8 +79,8 @@ def scene_distances(row, o_scene, p, pe, veto_cfg, veto_out):
         pe[CENTRE_SLACK_M] = 0.5 * span - w_o
     pe[RIM_REACH_M] = d_grasp + span
     pe[RIM_HEIGHT_M] = top + RIM_HOVER_M
-    if p[REDIRECT_TOL_M] > 0.0:
-        pe[REDIRECT_TOL_M] = max(w_t - r, 0.0) + pad_w
+    if p[PLACE_TOL_M] > 0.0:
+        pe[PLACE_TOL_M] = max(w_t - r, 0.0) + pad_w
     pe[CARRY_REACH_M] = max(p[CARRY_REACH_M], math.hypot(r, top) + pad_w)
     veto_out[0] = top + pad_h + e if veto_cfg[0] > 0.0 else 0.0
     if veto_cfg[1] > 0.0:

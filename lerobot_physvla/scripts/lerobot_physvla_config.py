@@ -108,7 +108,8 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(2) from None
     if args.write_presets:
         for mode in MODES:  # the paper's four modes, main-text settings
-            path = add_corrector(Path(args.write_presets) / mode, build_config({**overrides, "mode": mode}))
+            path = add_corrector(Path(args.write_presets) / mode,
+                                 build_config({**overrides, "preset": "paper", "mode": mode}))
             print(f"wrote {path}")
         for name in PRESETS:
             path = add_corrector(Path(args.write_presets) / f"preset_{name}", build_config({**overrides, "preset": name}))

@@ -24,7 +24,7 @@ from lerobot_physvla.diagnostics import EpisodeRecorder
 from lerobot_physvla.envs.libero_physvla import as_physvla_env
 from lerobot_physvla.envs.metaworld_physvla import as_metaworld_physvla_env
 from lerobot_physvla.envs.so101_physvla import as_so101_physvla_env
-from lerobot_physvla.flags import FlagError, build_config, split_argv
+from lerobot_physvla.flags import FlagError, build_config, describe, split_argv
 from lerobot_physvla.processor.physvla_processor import PhysVLACorrectorStep
 
 
@@ -99,9 +99,8 @@ SHIPPED_PRESETS = ("default", "smooth", "arm")  # the presets an env's own optio
 
 
 def preset_of(overrides) -> str:
-    """The preset the flags resolve to (flags.build_config): --physvla.preset, else the paper's where a mode is
-    named, else the shipped default."""
-    return str(overrides.get("preset") or ("paper" if "mode" in overrides else "default"))
+    """The preset the flags resolve to (flags.build_config): --physvla.preset, else the shipped default."""
+    return str(overrides.get("preset") or "default")
 
 
 def for_env(cfg, env_cfg, given=(), preset_name: str = "default"):
@@ -126,6 +125,7 @@ def activate_eval(argv: list[str]) -> None:
         cfg = build_config(overrides) if post == "physvla" else None
         if cfg is not None:
             compat.check_lerobot_version()
+            print(describe(cfg, overrides), file=sys.stderr)
     except (FlagError, compat.UnsupportedLerobot) as e:
         print(f"lerobot-physvla: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_physvla.flags import FlagError, build_config, split_argv
+from lerobot_physvla.flags import FlagError, build_config, describe, split_argv
 
 MODES = ("offline", "resim", "policy")
 
@@ -92,6 +92,7 @@ def parse(argv: list[str]) -> tuple[ReplayArgs, object]:
     if post == "none":
         raise FlagError("--policy.postprocess=none: replay always runs the corrector; drop the flag")
     cfg = build_config(overrides)
+    print(describe(cfg, overrides), file=sys.stderr)
     try:
         args = draccus.parse(config_class=ReplayArgs, args=rest)
     except SystemExit as e:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from lerobot_physvla import compat
 from lerobot_physvla.core.config import ARM_PRESET
-from lerobot_physvla.flags import ROBOT_FLAGS, FlagError, build_config, split_argv
+from lerobot_physvla.flags import ROBOT_FLAGS, FlagError, build_config, describe, split_argv
 from lerobot_physvla.arms.model import ArmError
 
 ROBOT_PROCESSOR = "physvla_robot_processor.json"  # the arm's corrector, saved beside a policy
@@ -85,12 +85,15 @@ def activate_rollout(argv: list[str]) -> None:
             raise FlagError("--physvla.* flags need --policy.postprocess=physvla")
         if post == "physvla":
             compat.check_lerobot_version()
+            said = ""
             fields = saved_robot_step(_policy_path(rest)) or {}
             if fields:
                 print(f"lerobot-physvla: the arm's corrector configuration saved with the policy "
                       f"({_policy_path(rest)}/{ROBOT_PROCESSOR}); flags override it", file=sys.stderr)
             if overrides or "config" not in fields:
-                fields["config"] = build_config(overrides, default=ARM_PRESET).to_dict()
+                cfg = build_config(overrides, default=ARM_PRESET)
+                said = describe(cfg, overrides, default=ARM_PRESET)
+                fields["config"] = cfg.to_dict()
             for k in ("object_xyz", "target_xyz"):
                 if k in robot:
                     robot[k] = list(robot[k])
@@ -101,6 +104,8 @@ def activate_rollout(argv: list[str]) -> None:
             fields.update(robot)
             fields["fps"] = _fps(rest)
             step = PhysVLARobotActionStep(**fields)
+            if said:  # the first line, once the step is built (a bad flag's error is the only line)
+                print(said, file=sys.stderr)
     except (FlagError, ArmError, compat.UnsupportedLerobot) as e:
         print(f"lerobot-physvla: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None

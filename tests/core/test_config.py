@@ -181,3 +181,40 @@ def test_the_class_is_a_plain_dataclass_that_agrees_with_the_declarations():
             assert hint == d.type, (f.name, hint, d.type)
     assert "dataclass" in repr(type(PhysVLAConfig.__dataclass_params__)).lower()
     assert PhysVLAConfig.__doc__.startswith("The corrector's configuration.")
+
+
+# The fields of version 1 of the saved form (core/config.py CONFIG_VERSION). A field added or renamed needs a new
+# version: CONFIG_VERSION + 1, an UPGRADES entry (its value from before it), and this list for the new version.
+FIELDS_V1 = ('alpha_temporal', 'alpha_transport', 'assist_steps', 'assist_still', 'beta', 'cap', 'centre_guide',
+             'centre_guide_once', 'centre_guide_trailing', 'centre_guide_yield_steps', 'chunk', 'chunk_phase_caps',
+             'close_meets', 'close_meets_onset', 'd_thresh_m', 'delta_grasp_m', 'dls_damping', 'el_mode', 'eps_nm',
+             'geometry', 'grasp_offset_m', 'gripper_rule', 'h_lift_m', 'hold_steps', 'layout', 'lift_assist_at_rest',
+             'lift_assist_u', 'lift_bias_m', 'lowpass', 'lowpass_alpha_max', 'lowpass_lag', 'lowpass_phases',
+             'lowpass_rough', 'lowpass_rough_hi', 'lowpass_rough_lo', 'lowpass_space', 'lowpass_speed_hi', 'mode',
+             'phase_caps', 'phase_ref', 'place_rule', 'place_tol_m', 'pose_error_m', 'pose_max_age_steps',
+             'pose_noise_m', 'r0_nm', 'redirect_gain', 'release_assist_error_k', 'release_assist_m', 'release_carry',
+             'rim_guide_into_grasp', 'rim_guide_m', 'veto_close_lead_s', 'veto_height_m', 'veto_reach_m', 'veto_reopen',
+             'weighting')
+
+
+def test_the_saved_form_is_versioned_and_a_new_field_needs_a_new_version():
+    from lerobot_physvla.core.config import CONFIG_VERSION, FIELDS, UPGRADES
+
+    assert CONFIG_VERSION == 1 and set(UPGRADES) == set(range(CONFIG_VERSION))
+    assert tuple(sorted(f.name for f in FIELDS)) == FIELDS_V1, "a field changed: bump CONFIG_VERSION, add an upgrade"
+    assert PhysVLAConfig(cap=0.1).to_dict()["version"] == CONFIG_VERSION
+    with pytest.raises(ValueError, match="upgrade lerobot-physvla"):
+        PhysVLAConfig.from_dict({"version": CONFIG_VERSION + 1, "cap": 0.1})
+
+
+def test_a_partial_configuration_fills_from_the_shipped_default_and_a_saved_file_from_before_acts_as_it_did():
+    from lerobot_physvla.core.config import PRESETS, SAVED_V0
+
+    assert PhysVLAConfig.from_dict({"mode": "phys_el"}) == PRESETS["default"].replace(mode="phys_el")
+    assert PhysVLAConfig.from_dict({"version": 1, "cap": 0.2}) == PRESETS["default"].replace(cap=0.2)
+    paper = PhysVLAConfig.paper().to_dict()
+    v0 = {k: paper[k] for k in SAVED_V0}  # what 0.1 saved: these fields only, no version
+    v0["redirect_tol_m"] = 0.01  # saved under its old name: renamed by the upgrade
+    assert PhysVLAConfig.from_dict(v0) == PhysVLAConfig.paper(place_tol_m=0.01)
+    del v0["cap"]  # not a whole saved file: a partial configuration, the shipped default's other fields
+    assert PhysVLAConfig.from_dict(v0).centre_guide

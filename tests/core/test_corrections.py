@@ -143,7 +143,7 @@ def test_place_redirect_leaves_the_policy_alone_within_its_tolerance_and_steers_
     from lerobot_physvla.core.corrections.base import TGT
     from lerobot_physvla.core.corrections.place_redirect import place_redirect
 
-    idx, geo, p, mem = ctx(place_rule="redirect", redirect_gain=0.5, redirect_tol_m=0.02)
+    idx, geo, p, mem = ctx(place_rule="redirect", redirect_gain=0.5, place_tol_m=0.02)
     geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
     a = np.array([0.3, -0.4, -0.3, 0.1, 0.2, 0.3, 1.0])
     # 1 cm off (a learned policy's own release point): its x, y untouched
@@ -160,7 +160,7 @@ def test_release_veto_holds_back_only_a_release_that_would_miss_and_yields_after
     from lerobot_physvla.core.corrections.base import HOLD, TGT
     from lerobot_physvla.core.corrections.release_veto import release_veto
 
-    idx, geo, p, mem = ctx(place_rule="release_veto", redirect_gain=0.5, redirect_tol_m=0.02, hold_steps=3)
+    idx, geo, p, mem = ctx(place_rule="release_veto", redirect_gain=0.5, place_tol_m=0.02, hold_steps=3)
     geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
     geo[OBJ:OBJ + 3] = (0.12, 0.04, 0.95)  # 5 cm off the target
     carrying = np.array([0.3, -0.4, -0.3, 0.1, 0.2, 0.3, 1.0])  # gripper closed (robosuite: +1)
@@ -192,7 +192,7 @@ def test_release_veto_on_fetch_closes_with_the_layouts_own_sign():
     from lerobot_physvla.core.corrections.base import TGT
     from lerobot_physvla.core.corrections.release_veto import release_veto
 
-    idx, geo, p, mem = ctx(layout=FETCH_4D, place_rule="release_veto", redirect_tol_m=0.02)
+    idx, geo, p, mem = ctx(layout=FETCH_4D, place_rule="release_veto", place_tol_m=0.02)
     geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
     geo[OBJ:OBJ + 3] = (0.12, 0.04, 0.95)
     out = run(release_veto, [0.0, 0.0, -0.2, 1.0], idx, geo, p, mem)  # Fetch: +1 = open
@@ -202,13 +202,13 @@ def test_release_veto_on_fetch_closes_with_the_layouts_own_sign():
 def test_release_carry_holds_the_hand_down_and_steers_to_half_the_tolerance():
     """release_carry: while a release is held back the hand does not rise (the policy's retreat
     would carry the object up and drop it), and a hold under way lets the open through only within
-    half of redirect_tol_m; without it, z is the policy's and the open goes through at the edge."""
+    half of place_tol_m; without it, z is the policy's and the open goes through at the edge."""
     from lerobot_physvla.core.corrections.base import HOLD, TGT
     from lerobot_physvla.core.corrections.release_veto import release_veto
 
     releasing = np.array([0.3, -0.4, 0.5, 0.1, 0.2, 0.3, -1.0])  # opening while moving up (+z)
     for carry in (False, True):
-        idx, geo, p, mem = ctx(place_rule="release_veto", redirect_tol_m=0.02, release_carry=carry)
+        idx, geo, p, mem = ctx(place_rule="release_veto", place_tol_m=0.02, release_carry=carry)
         geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
         geo[OBJ:OBJ + 3] = (0.12, 0.04, 0.95)  # 5 cm off: held back
         out = run(release_veto, releasing, idx, geo, p, mem)
@@ -246,7 +246,7 @@ def test_release_assist_opens_only_after_a_still_hold_over_a_surface_target_and_
     from lerobot_physvla.core.corrections.base import LIFT, STALL, TGT
     from lerobot_physvla.core.corrections.release_assist import release_assist
 
-    idx, geo, p, mem = ctx(place_rule="release_veto", redirect_tol_m=0.02, release_assist_m=0.04, assist_steps=3)
+    idx, geo, p, mem = ctx(place_rule="release_veto", place_tol_m=0.02, release_assist_m=0.04, assist_steps=3)
     geo[TGT:TGT + 3] = (0.12, -0.01, 0.902)  # the plate, at the bowl's resting level
     geo[OBJ:OBJ + 3] = (0.125, -0.005, 0.923)  # the traced failure: held 2 cm above it, on target
     geo[LIFT] = 0.025
@@ -271,7 +271,7 @@ def test_release_assist_judged_by_the_hand_opens_a_hold_whose_command_swings_ins
     swing = [-0.04, -0.04, -0.035, -0.03, 0.0, 0.02, 0.023, 0.03, 0.057, 0.065]  # one chunk's z, traced
     outs = {}
     for still in ("action", "hand"):
-        idx, geo, p, mem = ctx(place_rule="release_veto", redirect_tol_m=0.02, release_assist_m=0.04,
+        idx, geo, p, mem = ctx(place_rule="release_veto", place_tol_m=0.02, release_assist_m=0.04,
                                assist_still=still)  # assist_steps: the default 10
         geo[TGT:TGT + 3] = (0.12, -0.01, 0.902)
         geo[OBJ:OBJ + 3] = (0.129, -0.01, 0.920)  # 0.9 cm off, 1.8 cm above: act_chunk_weak task 1 / 3
@@ -280,7 +280,7 @@ def test_release_assist_judged_by_the_hand_opens_a_hold_whose_command_swings_ins
     assert outs["action"] == [1.0] * 30  # the count restarts at the chunk's last two steps: never opens
     assert outs["hand"][:9] == [1.0] * 9 and outs["hand"][9] == -1.0  # the tenth still step opens
     # a drifting hand: 4 mm from where the hold began restarts the count (and re-anchors there)
-    idx, geo, p, mem = ctx(place_rule="release_veto", redirect_tol_m=0.02, release_assist_m=0.04,
+    idx, geo, p, mem = ctx(place_rule="release_veto", place_tol_m=0.02, release_assist_m=0.04,
                            assist_still="hand", assist_steps=3)
     geo[TGT:TGT + 3], geo[OBJ:OBJ + 3], geo[LIFT] = (0.12, -0.01, 0.902), (0.129, -0.01, 0.920), 0.022
     hold = [0.0, 0.0, 0.0, 0, 0, 0, 1.0]
@@ -295,7 +295,7 @@ def test_release_assist_leaves_every_other_hold_alone(case):
     from lerobot_physvla.core.corrections.base import LIFT, STALL, TGT
     from lerobot_physvla.core.corrections.release_assist import release_assist
 
-    idx, geo, p, mem = ctx(place_rule="release_veto", redirect_tol_m=0.02, release_assist_m=0.04, assist_steps=3)
+    idx, geo, p, mem = ctx(place_rule="release_veto", place_tol_m=0.02, release_assist_m=0.04, assist_steps=3)
     geo[TGT:TGT + 3] = (0.12, -0.01, 0.902)
     geo[OBJ:OBJ + 3] = (0.125, -0.005, 0.923)
     geo[LIFT] = 0.025

@@ -47,7 +47,7 @@ def test_any_state_field_and_action_gives_a_finite_in_bounds_action(
                         chunk=chunk or "all", cap=1.0 if seed % 2 else 0.05)
     if beyond:  # the options beyond the paper (those of the default preset, and per-phase authority)
         cfg = cfg.replace(phase_caps=(0.5 * (seed % 5 > 1), 0.5, 1.0, 1.0), veto_height_m=0.06, veto_reach_m=0.10,
-                          place_rule=("redirect", "release_veto")[seed % 2], redirect_tol_m=0.02 * (seed % 3 > 0),
+                          place_rule=("redirect", "release_veto")[seed % 2], place_tol_m=0.02 * (seed % 3 > 0),
                           phase_ref="object", lowpass="adaptive", release_carry=seed % 2 == 1,
                           lowpass_space=("action", "target")[seed % 3 > 0], lowpass_rough=("ema", "median")[seed % 2],
                           lowpass_lag=("trail", "compensate")[seed % 4 > 1],

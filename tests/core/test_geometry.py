@@ -24,14 +24,14 @@ CAN = (0.0315, 0.031, 0.038, 0.0611, 0.08, 0.008, 0.008)  # LIBERO-Object's alph
 
 def derived(scene, **cfg):
     """(delta_grasp, veto [height, reach], {slot: value}) of one env with this scene under the configuration."""
-    c = PhysVLAConfig(**cfg)
+    c = PhysVLAConfig.from_dict(cfg)
     n = 7
     row = np.zeros(field_offsets(n)["scene"] + len(SCENE))
     row[field_offsets(n)["scene"]:] = scene
     p = params(c, c.action_layout)
     pe, veto = np.empty_like(p), np.empty(2)
     dg = scene_distances(row, field_offsets(n)["scene"], p, pe, np.array([c.veto_height_m, c.veto_reach_m]), veto)
-    names = ("RIM_GUIDE_M", "RIM_SLACK_M", "RIM_REACH_M", "RIM_HEIGHT_M", "REDIRECT_TOL_M", "CARRY_REACH_M")
+    names = ("RIM_GUIDE_M", "RIM_SLACK_M", "RIM_REACH_M", "RIM_HEIGHT_M", "PLACE_TOL_M", "CARRY_REACH_M")
     return dg, veto, {k: pe[P_SLOTS[k]] for k in names}
 
 
@@ -39,10 +39,10 @@ def test_on_the_spatial_bowl_every_distance_lands_within_3_mm_of_the_constant_it
     c = PhysVLAConfig()
     dg, veto, s = derived(BOWL)
     got = {"delta_grasp_m": dg, "veto_height_m": veto[0], "veto_reach_m": veto[1], "rim_guide_m": s["RIM_GUIDE_M"],
-           "redirect_tol_m": s["REDIRECT_TOL_M"], "rim reach": s["RIM_REACH_M"], "rim height": s["RIM_HEIGHT_M"],
+           "place_tol_m": s["PLACE_TOL_M"], "rim reach": s["RIM_REACH_M"], "rim height": s["RIM_HEIGHT_M"],
            "carry reach": s["CARRY_REACH_M"]}
     want = {"delta_grasp_m": c.delta_grasp_m, "veto_height_m": c.veto_height_m, "veto_reach_m": c.veto_reach_m,
-            "rim_guide_m": c.rim_guide_m, "redirect_tol_m": c.redirect_tol_m, "rim reach": 0.14, "rim height": 0.15,
+            "rim_guide_m": c.rim_guide_m, "place_tol_m": c.place_tol_m, "rim reach": 0.14, "rim height": 0.15,
             "carry reach": 0.10}
     assert {k: round(abs(got[k] - want[k]), 4) for k in want} == pytest.approx({k: 0.0 for k in want}, abs=0.003)
     assert s["RIM_SLACK_M"] > 0  # the bowl is wider than the hand opens: the rim guide pulls
@@ -52,7 +52,7 @@ def test_a_can_the_hand_closes_around_gets_no_rim_pull_and_its_own_smaller_envel
     dg, veto, s = derived(CAN)
     assert s["RIM_SLACK_M"] < 0  # no pose error is below it: the rim guide never pulls
     assert dg == pytest.approx(0.0395) and veto[1] == pytest.approx(0.0315 + 0.04 + 0.008)
-    assert s["REDIRECT_TOL_M"] == pytest.approx(0.0611 - 0.0315 + 0.008)  # the basket is wider than the bowl's plate
+    assert s["PLACE_TOL_M"] == pytest.approx(0.0611 - 0.0315 + 0.008)  # the basket is wider than the bowl's plate
 
 
 def test_the_pose_error_widens_the_derived_veto_as_the_fixed_one_and_what_is_off_stays_off():
@@ -61,7 +61,7 @@ def test_the_pose_error_widens_the_derived_veto_as_the_fixed_one_and_what_is_off
     np.testing.assert_allclose(veto1 - veto0, 0.01)
     dg, veto, s = derived(BOWL, **PhysVLAConfig.paper().to_dict() | {"geometry": "scene"})
     assert veto[0] == 0.0 and veto[1] == 0.0  # the paper's veto: the whole approach phase, no height test
-    assert s["REDIRECT_TOL_M"] == 0.0  # the paper has no release tolerance
+    assert s["PLACE_TOL_M"] == 0.0  # the paper has no release tolerance
 
 
 def test_a_scene_is_measured_only_where_every_value_is_finite_and_sizes_are_positive():
@@ -123,5 +123,5 @@ def test_geometry_is_a_checked_field_and_a_configuration_saved_before_it_reads_a
     with pytest.raises(ValueError, match="geometry"):
         PhysVLAConfig(geometry="bowl")
     d = PhysVLAConfig().to_dict()
-    del d["geometry"]
+    del d["geometry"], d["version"]  # a file saved before the field (and before versions)
     assert PhysVLAConfig.from_dict(d).geometry == "fixed"

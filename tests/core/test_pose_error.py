@@ -186,6 +186,6 @@ def test_the_release_assist_widens_its_on_target_test_by_k_pose_errors_only_wher
     assert not opens(pose_error_m=0.02, release_assist_error_k=0.0)
     assert opens(pose_error_m=0.02, release_assist_error_k=1.0)
     assert not opens(release_assist_error_k=1.0)
-    assert not opens(pose_error_m=0.021, release_assist_error_k=1.0)  # beyond redirect_tol_m: it stands down
+    assert not opens(pose_error_m=0.021, release_assist_error_k=1.0)  # beyond place_tol_m: it stands down
     with pytest.raises(ValueError, match="release_assist_error_k"):
         PhysVLAConfig(release_assist_error_k=-1.0)

@@ -18,7 +18,7 @@ CONFIGS = [
     PRESETS["default"],
     PRESETS["default"].replace(veto_reopen=True),  # default v3: the veto may open a closed gripper
     PRESETS["default"].replace(release_carry=False),  # default v4: the release veto in the place phase only
-    PRESETS["default"].replace(place_rule="redirect", redirect_tol_m=0.015),
+    PRESETS["default"].replace(place_rule="redirect", place_tol_m=0.015),
     PRESETS["default"].replace(mode="phys_el", phase_caps=(0.2, 0.5, 1.0, 1.0), lowpass="adaptive",
                                lowpass_phases="grasp,place"),
     PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target", lowpass_rough="median",

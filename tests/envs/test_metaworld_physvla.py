@@ -63,7 +63,7 @@ def test_the_close_that_meets_joins_the_shipped_presets_on_metaworld_alone():
     off = {"close_meets_onset": False}
     assert for_env(preset("default", **off), mw, given=off, preset_name="default").close_meets_onset is False
     assert for_env(PhysVLAConfig(), LiberoEnv(), preset_name="default").close_meets_onset is False
-    assert (preset_of({}), preset_of({"mode": "phys"}), preset_of({"preset": "smooth"})) == ("default", "paper", "smooth")
+    assert (preset_of({}), preset_of({"mode": "phys"}), preset_of({"preset": "smooth"})) == ("default", "default", "smooth")
 
 
 def test_state_only_config_drops_cameras_and_adds_the_scene():

@@ -42,7 +42,7 @@ def test_lockstep_batch_equals_the_corrector_frame_by_frame(data, name):
 def test_the_report_counts_exactly_what_changed(data):
     # default v2 (place redirection) changes a clean expert's place frames; the shipped default's
     # release veto leaves a clean expert alone, so it would not exercise the count
-    recs, note = offline.replay_offline(data, preset(place_rule="redirect", redirect_tol_m=0.0), progress=False)
+    recs, note = offline.replay_offline(data, preset(place_rule="redirect", place_tol_m=0.0), progress=False)
     assert note is None
     for ep, rec in zip(data.episodes, recs):
         cor = rec["_arrays"]["corrected"]

@@ -40,7 +40,7 @@ def test_resim_on_robosuite_lift_plate(tmp_path):
     root = tmp_path / "lift"
     out = record(root, ["lift_plate"], [100], expert={"place_bias_units": 1.7}, progress=False)
     assert out["successes"] == 0
-    (rec,) = replay_resim(load("local/physvla_replay", root), preset(place_rule="redirect", redirect_tol_m=0.0),
+    (rec,) = replay_resim(load("local/physvla_replay", root), preset(place_rule="redirect", place_tol_m=0.0),
                           progress=False)
     assert rec["scene"] == "lift_plate" and rec["recorded_success"] is False
     assert rec["raw"]["success"] is False and rec["state_divergence_m"] == 0.0
@@ -56,7 +56,7 @@ def test_resim_reads_the_state_through_the_perception_model(tmp_path):
     root = tmp_path / "lift"
     record(root, ["lift_plate"], [100], expert={"place_bias_units": 1.7}, progress=False)
     data = load("local/physvla_replay", root)
-    cfg = preset(place_rule="redirect", redirect_tol_m=0.0, pose_max_age_steps=1)
+    cfg = preset(place_rule="redirect", place_tol_m=0.0, pose_max_age_steps=1)
     (late,) = replay_resim(data, cfg, progress=False, perception=PerceptionConfig.both(lag_steps=3))
     assert late["corrected"]["frames_changed"] == 0 and late["corrected"]["success"] is False
     (fresh,) = replay_resim(data, cfg, progress=False, perception=PerceptionConfig.both(lag_steps=1))

@@ -149,6 +149,6 @@ def test_the_scene_of_the_spatial_bowl_is_measured_and_gives_the_distances_near_
         pe, veto = np.empty_like(p), np.empty(2)
         dg = scene_distances(row, field_offsets(src.oracle.n_joints)["scene"], p, pe,
                              np.array([c.veto_height_m, c.veto_reach_m]), veto)
-        got = (dg, veto[0], veto[1], pe[P_SLOTS["RIM_GUIDE_M"]], pe[P_SLOTS["REDIRECT_TOL_M"]])
-        want = (c.delta_grasp_m, c.veto_height_m, c.veto_reach_m, c.rim_guide_m, c.redirect_tol_m)
+        got = (dg, veto[0], veto[1], pe[P_SLOTS["RIM_GUIDE_M"]], pe[P_SLOTS["PLACE_TOL_M"]])
+        want = (c.delta_grasp_m, c.veto_height_m, c.veto_reach_m, c.rim_guide_m, c.place_tol_m)
         np.testing.assert_allclose(got, want, atol=0.003)

@@ -111,10 +111,12 @@ CORRECTION = Correction("approach_veto", APPROACH, 0, approach_veto, values={"CL
                                                                        "MEETS_ONSET": lambda c, lay: float(c.close_meets_onset)},
                         fields=(Field("veto_close_lead_s", float, 0.0, 0.0, "the gripper veto leaves alone a close the "
                                       "policy begins above the veto height while coming down fast enough to be there "
-                                      "this many seconds later (the fingers' closing time), s; 0 = off"),
+                                      "this many seconds later (the fingers' closing time), s; 0 = off",
+                                      experimental="failed its confirmation, in no preset: docs/decisions/27-timed-close.md"),
                                 Field("close_meets", bool, False, False, "the gripper's height veto leaves alone a "
                                       "close whose fingers, at the speed the state's close time gives them, reach the "
-                                      "object's width while the descending hand is at the veto height (module doc)"),
+                                      "object's width while the descending hand is at the veto height (module doc)",
+                                      experimental="judged every step, failed its confirmation, in no preset: docs/decisions/28-close-meets.md"),
                                 Field("close_meets_onset", bool, False, False, "the same judgement made once, at the "
                                       "step the policy begins its close, and kept while the close lasts: a close begun "
                                       "where it could not meet the object (a premature one) stays held")),

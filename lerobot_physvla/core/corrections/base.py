@@ -58,6 +58,11 @@ class Field:
         default: its value in the shipped default (PhysVLAConfig()).
         paper: its value in the paper's main text (PhysVLAConfig.paper()): off for a correction beyond it.
         doc: what it sets, with its unit.
+        experimental: why the field is experimental (an option that failed its confirmation, in no preset, and
+            its decision record), or "": it stays settable, is warned of once when set away from its default and is
+            listed apart (PhysVLAConfig's `experimental` group, `--physvla.help`).
+        experimental_values: values of a kept field that are experimental in the same way (with `experimental`
+            saying why).
     """
 
     name: str
@@ -65,6 +70,8 @@ class Field:
     default: object
     paper: object
     doc: str
+    experimental: str = ""
+    experimental_values: tuple = ()
 
 
 @dataclass(frozen=True)

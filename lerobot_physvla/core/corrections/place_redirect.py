@@ -19,8 +19,8 @@ from lerobot_physvla.core.corrections import slots
 from lerobot_physvla.core.corrections.base import METRES_PER_UNIT, OBJ, POSE_ERROR_M, TGT, Correction, Field
 from lerobot_physvla.core.phase import PLACE
 
-PARAMS = ("REDIRECT_GAIN", "REDIRECT_TOL_M")  # the steering gain (action units per unit of error); its tolerance, m
-REDIRECT_GAIN, REDIRECT_TOL_M = slots.params(__file__)
+PARAMS = ("REDIRECT_GAIN", "PLACE_TOL_M")  # the steering gain (action units per unit of error); its tolerance, m
+REDIRECT_GAIN, PLACE_TOL_M = slots.params(__file__)
 
 
 @njit(error_model="numpy")
@@ -37,23 +37,20 @@ def steer(geo, p, tol):
 def place_redirect(a_raw, a_phys, idx, geo, p, mem, commit):
     """x, y channels <- k (target - object) beyond tol (`steer`); z, rotation and gripper, and x, y
     within tol: the policy's (a_phys starts as a_raw)."""
-    k, ex, ey = steer(geo, p, p[REDIRECT_TOL_M] + p[POSE_ERROR_M])  # within tol + the pose error: left alone
+    k, ex, ey = steer(geo, p, p[PLACE_TOL_M] + p[POSE_ERROR_M])  # within tol + the pose error: left alone
     if k > 0.0:
         a_phys[idx[0]] = k * ex
         a_phys[idx[1]] = k * ey
 
 
 CORRECTION = Correction("place_redirect", PLACE, 0, place_redirect, values={
-    "REDIRECT_GAIN": lambda c, lay: c.redirect_gain, "REDIRECT_TOL_M": lambda c, lay: c.redirect_tol_m},
+    "REDIRECT_GAIN": lambda c, lay: c.redirect_gain, "PLACE_TOL_M": lambda c, lay: c.place_tol_m},
     on=lambda c: c.place_rule == "redirect",
-    pose="steers only the object's error beyond redirect_tol_m + pose_error_m",
-    fields=(Field("redirect_gain", float, 0.5, 0.5, "the steering gain, action units per action unit of error"),
-            Field("redirect_tol_m", float, 0.02, 0.0, "the held object's centre within this of the target's: "
-                  "left alone (the release veto: a release beyond it is held back), m")),
+    pose="steers only the object's error beyond place_tol_m + pose_error_m",
+    fields=(Field("redirect_gain", float, 0.5, 0.5, "the steering gain, action units per action unit of error"),),
     check=lambda c: _check(c))
 
 
 def _check(c) -> None:
-    if not (c.redirect_gain > 0 and c.redirect_tol_m >= 0):
-        raise ValueError(f"physvla: need redirect_gain > 0 and redirect_tol_m >= 0, got {c.redirect_gain}, "
-                         f"{c.redirect_tol_m}")
+    if not c.redirect_gain > 0:
+        raise ValueError(f"physvla: need redirect_gain > 0, got {c.redirect_gain}")

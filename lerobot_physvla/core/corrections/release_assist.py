@@ -19,7 +19,7 @@ gripper closed and arm still, until the episode ends; on init states 0-4, 22 of 
 failures end so. A policy that releases by itself never meets the condition (it does not stay
 still with the gripper closed over the target), and a target in the air (robosuite Lift's goal
 above the cube) is no surface, so a lifted object is never let go there. The release veto's
-tolerance (redirect_tol_m) says what "on target" is, so the two rules agree: a release this rule
+tolerance (place_tol_m) says what "on target" is, so the two rules agree: a release this rule
 makes is one the veto would let through.
 
 assist_still=hand (candidate 12): traced on the chunked ACTs under the shipped default (design block
@@ -35,7 +35,7 @@ from numba import njit
 from lerobot_physvla.core.corrections import slots
 from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, LIFT, OBJ, POSE_ERROR_M,
                                                    TGT, Correction, Field)
-from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M
+from lerobot_physvla.core.corrections.place_redirect import PLACE_TOL_M
 from lerobot_physvla.core.phase import PLACE
 
 # the highest hold, m; steps held; 1.0: judged by the hand; the pose errors the on-target test widens by
@@ -53,7 +53,7 @@ SUPPORT_M = 0.05  # the target is a surface: within this of the object's resting
 def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
     """Gripper opened once the policy has held the object still over the target for assist_steps."""
     g = idx[GRIPPER]
-    if g < 0 or p[POSE_ERROR_M] > p[REDIRECT_TOL_M]:  # the pose cannot say "on target" within tol
+    if g < 0 or p[POSE_ERROR_M] > p[PLACE_TOL_M]:  # the pose cannot say "on target" within tol
         return
     if mem[STALL] >= p[ASSIST_STEPS]:  # latched: open for as long as the phase stays place
         a_phys[g] = p[GRIPPER_OPEN]
@@ -61,7 +61,7 @@ def release_assist(a_raw, a_phys, idx, geo, p, mem, commit):
     c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])  # the command's midpoint (base.py): beyond it, a close
     closed = (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0
     widen = p[ASSIST_ERROR_K] * p[POSE_ERROR_M]  # the pose error the on-target test allows for, m
-    tol = p[REDIRECT_TOL_M] + widen
+    tol = p[PLACE_TOL_M] + widen
     ex, ey = geo[TGT] - geo[OBJ], geo[TGT + 1] - geo[OBJ + 1]
     dz = geo[OBJ + 2] - geo[TGT + 2]
     rest_z = geo[OBJ + 2] - geo[LIFT]
@@ -100,7 +100,7 @@ CORRECTION = Correction("release_assist", PLACE, 1, release_assist, values={
     "ASSIST_ERROR_K": lambda c, lay: c.release_assist_error_k},
     on=lambda c: c.release_assist_m > 0.0 and c.place_rule == "release_veto", commit=release_assist_commit,
     pose="judges 'on target' from the poses (within tol + release_assist_error_k x pose_error_m): off once "
-         "pose_error_m > redirect_tol_m",
+         "pose_error_m > place_tol_m",
     fields=(Field("release_assist_m", float, 0.04, 0.0, "open for a hold still over the target at most this above "
                   "it, m; 0 = off"),
             Field("assist_steps", int, 10, 10, "control steps a hold lasts before the release (and the lift) assist "

@@ -27,7 +27,7 @@ from numba import njit
 from lerobot_physvla.core.corrections import slots
 from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, OBJ, POSE_ERROR_M, Z,
                                                    Correction, Field)
-from lerobot_physvla.core.corrections.place_redirect import REDIRECT_TOL_M, steer
+from lerobot_physvla.core.corrections.place_redirect import PLACE_TOL_M, steer
 from lerobot_physvla.core.phase import GRASP, PLACE
 
 # the longest hold, control steps; 1.0: release_carry; the object counts as at the hand within CARRY_REACH_M of it (3-D,
@@ -47,7 +47,7 @@ def release_veto(a_raw, a_phys, idx, geo, p, mem, commit):
     carry = p[RELEASE_CARRY] > 0.5
     c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])  # the command's midpoint (base.py): open side beyond it
     if g >= 0 and (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) > 0.0:
-        tol = p[REDIRECT_TOL_M]
+        tol = p[PLACE_TOL_M]
         if carry and mem[HOLD] > 0.0:
             tol = 0.5 * tol  # a hold under way steers to half the tolerance
         tol += p[POSE_ERROR_M]  # a release is held back only where it misses whatever the pose's error

@@ -31,7 +31,8 @@ def rim_guide_grasp(a_raw, a_phys, idx, geo, p, mem, commit):
 
 CORRECTION = Correction("rim_guide_grasp", GRASP, 2, rim_guide_grasp, on=lambda c: c.rim_guide_into_grasp,
                         fields=(Field("rim_guide_into_grasp", bool, False, False, "the rim guide's pull goes on in the "
-                                      "grasp phase until the hand reaches the rim"),),
+                                      "grasp phase until the hand reaches the rim",
+                                      experimental="failed its confirmation, in no preset: docs/decisions/20-rim-guide-into-grasp-for-learned.md"),),
                         check=lambda c: _check(c))
 
 
