@@ -91,3 +91,17 @@ def test_the_first_line_names_the_preset_and_what_differs():
     assert describe(build_config(o), o) == "lerobot-physvla: preset smooth; fields that differ from it: cap=0.1"
     assert describe(build_config({}), {}) == "lerobot-physvla: preset default; fields that differ from it: none"
     assert describe(build_config({}, default="arm"), {}, default="arm").startswith("lerobot-physvla: preset arm;")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("script", ["lerobot-eval", "lerobot-rollout", "lerobot-physvla-replay"])
+def test_the_console_scripts_print_the_fields_and_exit(script):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    run = subprocess.run([str(Path(sys.executable).parent / script), "--physvla.help"], capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "--physvla.place_tol_m  (float, default 0.02)" in run.stdout and "EXPERIMENTAL" in run.stdout
+    assert ("--physvla.object_xyz" in run.stdout) == (script == "lerobot-rollout")

@@ -58,6 +58,87 @@ def test_the_readme_and_results_page_tables_are_what_the_data_gives():
     assert headline.current(headline.RESULTS_MD) == headline.block().replace("](eval/results/", "](../eval/results/")
 
 
+def _readme_rows() -> list[list[str]]:
+    """The cells of the README table's rows (its header and rule left out)."""
+    lines = [x for x in headline.current().splitlines() if x.startswith("| ") and not x.startswith("| policy family")]
+    return [[c.strip() for c in x.strip().strip("|").split("|")] for x in lines]
+
+
+def test_the_readme_rows_are_each_family_s_pairs_recomputed_from_the_episode_rows():
+    """Each row of the README's table recomputed here from the stored episode rows, paired by hand on backbone,
+    scene, task and seed between baseline and the row's configuration: its pairs, both success rates and the paired
+    difference with its 95 % interval (the difference inside it); every block one the study confirms on, none it
+    designs on, and every pair of it stored."""
+    rows = _readme_rows()
+    assert len(rows) == len(headline.FAMILIES) >= 6
+    for cells, (label, parts, _) in zip(rows, headline.FAMILIES, strict=True):
+        assert cells[0].startswith(label), (cells[0], label)
+        d, base, this = [], 0, 0
+        for name, config, blocks, backbones in parts:
+            s = Study(study_mod.find(name))
+            roles = {b.name: role for b, role in s.seed_roles()}
+            stored = [r for where in s.data for r in Store(where).rows]
+            for bn in blocks:
+                assert roles[bn] == "confirm", (name, bn, roles[bn])
+                bl = s.blocks[bn]
+                for b in backbones or bl.backbones:
+
+                    def outcomes(c, bl=bl, b=b):
+                        h = s.config_hash(c, bl.scene)
+                        return {(r["task_id"], r["seed"]): bool(r["success"]) for r in stored
+                                if (r["backbone"], r["config"], r["scene"]) == (b, h, bl.scene)
+                                and r["task_id"] in bl.tasks and r["seed"] in bl.seeds}
+
+                    corrected, uncorrected = outcomes(config), outcomes("baseline")
+                    assert set(corrected) == set(uncorrected) and len(corrected) == len(bl.tasks) * len(bl.seeds)
+                    for k in corrected:
+                        d.append(int(corrected[k]) - int(uncorrected[k]))
+                        base, this = base + uncorrected[k], this + corrected[k]
+        n = len(d)
+        mean, half = float(np.mean(d)), 1.96 * float(np.std(d, ddof=1)) / np.sqrt(n)
+        assert n > 0 and cells[1] == str(n), label
+        assert (cells[2], cells[3]) == (f"{base / n:.0%}", f"{this / n:.0%}"), label
+        assert cells[4] == f"{mean * 100:+.1f} [{(mean - half) * 100:+.1f}, {(mean + half) * 100:+.1f}]", label
+        diff, lo, hi = (float(x) for x in re.findall(r"[+-]\d+\.\d", cells[4]))
+        assert lo <= diff <= hi, label
+        assert all(f"eval/results/{s}/README.md" in cells[5] for s in {Study(study_mod.find(p[0])).results.name
+                                                                       for p in parts}), label
+
+
+def test_the_readme_calls_shipped_default_only_what_ships_and_footnotes_the_rest():
+    """A README row unmarked ran the shipped default of this code: PhysVLAConfig() in the env's layout, plus the
+    options its env type adds (MetaWorld's close_meets_onset); a row that ran an older default is marked, and its
+    footnote names how it differs (the LIBERO-Spatial rows: before the centre guide)."""
+    from lerobot_physvla.core.config import so101_layout
+    from lerobot_physvla.envs.metaworld_physvla import MetaworldPhysVLAEnvConfig
+
+    assert MetaworldPhysVLAEnvConfig.physvla_options == {"close_meets_onset": True}
+    ships = {"libero_spatial": PhysVLAConfig(), "libero_object": PhysVLAConfig(), "libero_goal": PhysVLAConfig(),
+             "libero_10": PhysVLAConfig(), "so101_env": PhysVLAConfig(layout=so101_layout(0.025), weighting="task_space"),
+             "metaworld": PhysVLAConfig(layout="metaworld", weighting="task_space", close_meets_onset=True)}
+    readme = headline.current()
+    marked = 0
+    for cells, (label, parts, _) in zip(_readme_rows(), headline.FAMILIES, strict=True):
+        mark = cells[0][len(label):].strip()
+        for name, config, blocks, _ in parts:
+            s = Study(study_mod.find(name))
+            for bn in blocks:
+                scene = s.blocks[bn].scene
+                is_it = s.config_hash(config, scene) == config_hash(ships[scene].to_dict())
+                assert is_it == (mark == ""), (label, name, config, scene)
+        if mark:
+            marked += 1
+            (note,) = [x for x in readme.splitlines() if x.startswith(mark + " ")]
+            assert "`centre_guide=false`" in note and "before the centre guide" in note, note
+    assert marked == 3  # the LIBERO-Spatial rows: no study ran the default with the centre guide there
+
+
+def test_the_results_page_never_calls_an_older_default_the_shipped_default():
+    text = headline.RESULTS_MD.read_text()
+    assert f"`{headline.SHIPPED}`: the shipped default" not in text
+    assert headline.SHIPPED_WAS in text
+
+
 def test_the_data_holds_every_episode():
     for name, n in EPISODES.items():
         assert len(Store(study_mod.RESULTS / name).rows) == n, name
