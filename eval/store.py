@@ -31,7 +31,7 @@ NEUTRAL = {"pose_error_m": 0.0, "pose_max_age_steps": 5, "geometry": "fixed", "v
            "close_meets_onset": False}
 # fields renamed after episodes were first stored (core/config.py ALIASES): hashed under their first names, and
 # the saved form's `version` left out, so a rename or a new version keeps every configuration's hash
-HASHED_AS = {"place_tol_m": "redirect_tol_m"}
+HASHED_AS = {"place_tol_m": "redirect_tol_m", "place_gain": "redirect_gain"}
 PERCEPTION = "perception"  # a study configuration's perception faults (sources/perception.py), kept beside it
 
 

@@ -231,6 +231,8 @@ CORE_FIELDS: tuple = (
         Field("place_tol_m", float, 0.02, 0.0, "on target: the held object's centre within this of the target's (the "
               "release veto holds back a release beyond it, the redirect steers only beyond it, the release assist "
               "lets go within it), m; was redirect_tol_m"),
+        Field("place_gain", float, 0.5, 0.5, "how hard the redirect and the release veto steer the held object toward "
+              "the target: action units per action unit of error beyond place_tol_m; was redirect_gain"),
     )),
     ("the pose the corrections read (the object's and the target's)", (
         Field("pose_error_m", float, 0.0, 0.0, "how far the poses may be off, a bound on |perceived - true| (e.g. "
@@ -289,11 +291,11 @@ CONFIG_VERSION = 1
 SAVED_V0 = frozenset({"alpha_temporal", "alpha_transport", "beta", "cap", "chunk", "d_thresh_m", "delta_grasp_m",
                       "dls_damping", "el_mode", "eps_nm", "grasp_offset_m", "gripper_rule", "h_lift_m", "layout",
                       "lift_bias_m", "mode", "r0_nm", "weighting"})
-# {version: ({old name: new name}, {field: value for a dict of that version without it})}. Version 0 -> 1: every
-# field added after the paper's main text took its paper value (the option off) until it existed.
-UPGRADES: dict[int, tuple[dict, dict]] = {0: ({"redirect_tol_m": "place_tol_m"}, PAPER)}
-# Renamed fields: their old names, accepted with a warning (once) wherever names are given.
-ALIASES: dict[str, str] = {"redirect_tol_m": "place_tol_m"}
+# Renamed fields: {old name: new name}; the old names are accepted with a warning (once) wherever names are given.
+ALIASES: dict[str, str] = {"redirect_tol_m": "place_tol_m", "redirect_gain": "place_gain"}
+# {version: ({old name: new name}, {field: value for a dict of that version without it})}. Version 0 -> 1: the
+# renames, and every field added after the paper's main text at its paper value (the option off) as before it existed.
+UPGRADES: dict[int, tuple[dict, dict]] = {0: (ALIASES, PAPER)}
 _WARNED: set = set()
 
 
@@ -378,6 +380,7 @@ class PhysVLAConfig:
     # the place phase's correction
     place_rule: PlaceRule = "release_veto"
     place_tol_m: float = 0.02
+    place_gain: float = 0.5
     # the pose the corrections read (the object's and the target's)
     pose_error_m: float = 0.0
     pose_max_age_steps: int = 5
@@ -395,8 +398,6 @@ class PhysVLAConfig:
     lift_assist_at_rest: bool = True
     # place_deceleration (core/corrections/place_deceleration.py)
     d_thresh_m: float = 0.08
-    # place_redirect (core/corrections/place_redirect.py)
-    redirect_gain: float = 0.5
     # release_assist (core/corrections/release_assist.py)
     release_assist_m: float = 0.04
     assist_steps: int = 10
@@ -503,6 +504,8 @@ class PhysVLAConfig:
                              f"{self.pose_max_age_steps!r}")
         if not 0.0 <= self.place_tol_m < float("inf"):
             raise ValueError(f"physvla: place_tol_m must be a finite distance >= 0 (m), got {self.place_tol_m}")
+        if not 0.0 < self.place_gain < float("inf"):
+            raise ValueError(f"physvla: place_gain must be > 0 (action units per unit of error), got {self.place_gain}")
         if not (self.veto_height_m >= 0 and self.veto_reach_m >= 0):
             raise ValueError(f"physvla: need veto_height_m >= 0 and veto_reach_m >= 0, got {self.veto_height_m}, "
                              f"{self.veto_reach_m}")

@@ -191,8 +191,8 @@ FIELDS_V1 = ('alpha_temporal', 'alpha_transport', 'assist_steps', 'assist_still'
              'geometry', 'grasp_offset_m', 'gripper_rule', 'h_lift_m', 'hold_steps', 'layout', 'lift_assist_at_rest',
              'lift_assist_u', 'lift_bias_m', 'lowpass', 'lowpass_alpha_max', 'lowpass_lag', 'lowpass_phases',
              'lowpass_rough', 'lowpass_rough_hi', 'lowpass_rough_lo', 'lowpass_space', 'lowpass_speed_hi', 'mode',
-             'phase_caps', 'phase_ref', 'place_rule', 'place_tol_m', 'pose_error_m', 'pose_max_age_steps',
-             'pose_noise_m', 'r0_nm', 'redirect_gain', 'release_assist_error_k', 'release_assist_m', 'release_carry',
+             'phase_caps', 'phase_ref', 'place_gain', 'place_rule', 'place_tol_m', 'pose_error_m', 'pose_max_age_steps',
+             'pose_noise_m', 'r0_nm', 'release_assist_error_k', 'release_assist_m', 'release_carry',
              'rim_guide_into_grasp', 'rim_guide_m', 'veto_close_lead_s', 'veto_height_m', 'veto_reach_m', 'veto_reopen',
              'weighting')
 

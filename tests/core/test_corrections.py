@@ -129,7 +129,7 @@ def test_place_redirect_steers_the_held_object_over_the_target():
     from lerobot_physvla.core.corrections.base import TGT
     from lerobot_physvla.core.corrections.place_redirect import place_redirect
 
-    idx, geo, p, mem = ctx(place_rule="redirect", redirect_gain=0.5)
+    idx, geo, p, mem = ctx(place_rule="redirect", place_gain=0.5)
     geo[OBJ:OBJ + 3] = (0.10, 0.02, 0.95)  # the held object, 4.7 cm off the hand on a rim grasp
     geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
     a = np.array([0.9, 0.9, -0.3, 0.1, 0.2, 0.3, 1.0])
@@ -143,7 +143,7 @@ def test_place_redirect_leaves_the_policy_alone_within_its_tolerance_and_steers_
     from lerobot_physvla.core.corrections.base import TGT
     from lerobot_physvla.core.corrections.place_redirect import place_redirect
 
-    idx, geo, p, mem = ctx(place_rule="redirect", redirect_gain=0.5, place_tol_m=0.02)
+    idx, geo, p, mem = ctx(place_rule="redirect", place_gain=0.5, place_tol_m=0.02)
     geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
     a = np.array([0.3, -0.4, -0.3, 0.1, 0.2, 0.3, 1.0])
     # 1 cm off (a learned policy's own release point): its x, y untouched
@@ -160,7 +160,7 @@ def test_release_veto_holds_back_only_a_release_that_would_miss_and_yields_after
     from lerobot_physvla.core.corrections.base import HOLD, TGT
     from lerobot_physvla.core.corrections.release_veto import release_veto
 
-    idx, geo, p, mem = ctx(place_rule="release_veto", redirect_gain=0.5, place_tol_m=0.02, hold_steps=3)
+    idx, geo, p, mem = ctx(place_rule="release_veto", place_gain=0.5, place_tol_m=0.02, hold_steps=3)
     geo[TGT:TGT + 3] = (0.12, -0.01, 0.90)
     geo[OBJ:OBJ + 3] = (0.12, 0.04, 0.95)  # 5 cm off the target
     carrying = np.array([0.3, -0.4, -0.3, 0.1, 0.2, 0.3, 1.0])  # gripper closed (robosuite: +1)

@@ -515,3 +515,39 @@ def test_every_made_by_names_a_script_that_exists_or_the_commit_it_ran_at():
                     assert r.returncode == 0 or not have, (f.name, line)
                 else:
                     assert (ROOT / script).is_file(), (f.name, line)
+
+
+def _files() -> dict:
+    skip = {".git", ".venv", "outputs", "__pycache__", ".pytest_cache", ".hypothesis", ".device", ".whl"}
+    out = {}
+    for p in ROOT.rglob("*"):
+        rel = p.relative_to(ROOT)
+        if p.is_file() and not skip & set(rel.parts):
+            st = p.stat()
+            out[str(rel)] = (st.st_mtime_ns, st.st_size)
+    return out
+
+
+def _written_by(argv: list[str]) -> set:
+    import subprocess
+    import sys
+    import time
+
+    before = _files()
+    time.sleep(0.01)
+    run = subprocess.run([sys.executable, *argv], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    after = _files()
+    return {k for k in after if after[k] != before.get(k)} | (set(before) - set(after))
+
+
+def test_a_study_report_writes_its_own_results_folder_and_nothing_else():
+    written = _written_by(["eval/run.py", "veto_close_lead", "--report-only"])
+    assert "eval/results/veto_close_lead/README.md" in written
+    assert all(w.startswith("eval/results/veto_close_lead/") for w in written), written
+
+
+@pytest.mark.slow
+def test_the_headline_generator_is_what_writes_the_readme_and_the_results_page():
+    written = _written_by(["eval/headline.py", "--write"])
+    assert written <= {"README.md", "docs/results.md"}, written

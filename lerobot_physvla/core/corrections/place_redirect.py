@@ -16,11 +16,11 @@ gripper stay the policy's, so it still decides when to lower and release.
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import METRES_PER_UNIT, OBJ, POSE_ERROR_M, TGT, Correction, Field
+from lerobot_physvla.core.corrections.base import METRES_PER_UNIT, OBJ, POSE_ERROR_M, TGT, Correction
 from lerobot_physvla.core.phase import PLACE
 
-PARAMS = ("REDIRECT_GAIN", "PLACE_TOL_M")  # the steering gain (action units per unit of error); its tolerance, m
-REDIRECT_GAIN, PLACE_TOL_M = slots.params(__file__)
+PARAMS = ("PLACE_GAIN", "PLACE_TOL_M")  # the steering gain (action units per unit of error); its tolerance, m
+PLACE_GAIN, PLACE_TOL_M = slots.params(__file__)
 
 
 @njit(error_model="numpy")
@@ -29,7 +29,7 @@ def steer(geo, p, tol):
     k = gain (1 - tol / n) / scale beyond tol (m; n = |(ex, ey)|), k = 0 within it."""
     ex, ey = geo[TGT] - geo[OBJ], geo[TGT + 1] - geo[OBJ + 1]
     n = (ex * ex + ey * ey) ** 0.5
-    k = p[REDIRECT_GAIN] * (1.0 - tol / n) / p[METRES_PER_UNIT] if n > tol else 0.0
+    k = p[PLACE_GAIN] * (1.0 - tol / n) / p[METRES_PER_UNIT] if n > tol else 0.0
     return k, ex, ey
 
 
@@ -44,13 +44,7 @@ def place_redirect(a_raw, a_phys, idx, geo, p, mem, commit):
 
 
 CORRECTION = Correction("place_redirect", PLACE, 0, place_redirect, values={
-    "REDIRECT_GAIN": lambda c, lay: c.redirect_gain, "PLACE_TOL_M": lambda c, lay: c.place_tol_m},
+    "PLACE_GAIN": lambda c, lay: c.place_gain, "PLACE_TOL_M": lambda c, lay: c.place_tol_m},
     on=lambda c: c.place_rule == "redirect",
-    pose="steers only the object's error beyond place_tol_m + pose_error_m",
-    fields=(Field("redirect_gain", float, 0.5, 0.5, "the steering gain, action units per action unit of error"),),
-    check=lambda c: _check(c))
+    pose="steers only the object's error beyond place_tol_m + pose_error_m")  # its fields: core/config.py's place group
 
-
-def _check(c) -> None:
-    if not c.redirect_gain > 0:
-        raise ValueError(f"physvla: need redirect_gain > 0, got {c.redirect_gain}")
