@@ -1,4 +1,4 @@
-"""Per-episode metrics of SPEC section 3 (plain numpy).
+"""Per-episode metrics (plain numpy; the definitions docs/method.md reports with).
 
     precision   clip(1 - min_t d_obj_xy / 0.10 m, 0, 1)
     efficiency  1 - steps / horizon on success, 0 on failure

@@ -4,9 +4,9 @@
 (CORE_FIELDS, LATE_FIELDS: mode and layout, the blender, the phase machine, the gripper veto, the place rule, Branch
 B, the low-pass) and the fields each correction declares in its own file (core/corrections/*.py, `Correction.fields`:
 their meaning, unit, default and paper value). A test holds the class to those declarations (names, order, types,
-defaults), so a new correction is its file plus its lines in the class. Its defaults are the
-shipped default; the paper's values (App. A's hyperparameter table, and the ones SPEC adds: h_lift, the
-layout, the gripper rule, the EL weighting and mode, eps, r0) are `PhysVLAConfig.paper()`. Nothing here
+defaults), so a new correction is its file plus its lines in the class. Its defaults are the shipped default; the
+paper's values (App. A's hyperparameter table, and the ones this project fixes where the paper is silent: h_lift,
+the layout, the gripper rule, the EL weighting and mode, eps, r0) are `PhysVLAConfig.paper()`. Nothing here
 imports LeRobot; the LeRobot glue turns `--physvla.*` flags into a `PhysVLAConfig`.
 """
 
@@ -266,7 +266,8 @@ LATE_FIELDS: tuple = (  # after the corrections' own
         Field("lowpass_rough_hi", float, 0.2, 0.2, "the roughness where it reaches alpha_max, action units"),
         Field("lowpass_rough", str, "ema", "ema", "ema | median: the roughness estimate"),
         Field("lowpass_lag", str, "trail", "trail", "trail | compensate: a filtered target's lag behind a steady move",
-              experimental="compensate failed its confirmation, in no preset: docs/decisions/13-robust-lowpass.md", experimental_values=("compensate",)),
+              experimental="compensate failed its confirmation, in no preset: docs/decisions/13-robust-lowpass.md",
+              experimental_values=("compensate",)),
     )),
 )
 _DECLARED: tuple = (*CORE_FIELDS, *((f"{c.name} (core/corrections/{c.name}.py)", c.fields) for c in CORRECTIONS

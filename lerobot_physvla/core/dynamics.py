@@ -1,7 +1,7 @@
 """Branch B: the Euler-Lagrange gate (paper eq. 4-6, App. A).
 
-The residual is of the *proposed* motion (SPEC 1): the action's position channels give a
-Cartesian velocity v = a_pos * metres_per_unit / dt, mapped to joints with a damped
+The residual is of the *proposed* motion (the paper leaves it open; this is the project's reading): the action's
+position channels give a Cartesian velocity v = a_pos * metres_per_unit / dt, mapped to joints with a damped
 least-squares pseudo-inverse of the translational Jacobian,
     qdot_des = J^T (J J^T + lambda^2 I)^-1 v,   qddot = (qdot_des - qdot) / dt,
     r_EL = M(q) qddot + C(q, qdot) qdot + G(q) - tau                      (eq. 4)

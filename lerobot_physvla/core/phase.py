@@ -5,7 +5,7 @@ Phases come from geometry alone (eq. 3):
     grasp      d_obj_xy <  delta_grasp, object not lifted
     transport  object lifted, d_tgt_xy >= delta_grasp
     place      object lifted, d_tgt_xy <  delta_grasp
-where "lifted" means obj_z - obj_rest_z > h_lift (SPEC), and d_*_xy are horizontal distances
+where "lifted" means obj_z - obj_rest_z > h_lift (h_lift_m; the paper names no value), and d_*_xy are horizontal distances
 from the end-effector, in metres.
 
 Each phase's correction lives in `core/corrections/` (one file each); `core/branch_a.py` runs
