@@ -1,4 +1,4 @@
-"""Train a LeRobot ACT on a lent GPU machine from arrays carried to it, and bring its checkpoints back.
+"""Train a LeRobot ACT or Diffusion Policy on a lent GPU machine from arrays carried to it, and bring its checkpoints back.
 
     .venv/bin/python backbones/device_train.py prepare --suite libero_goal --recipe act_chunk_long   # here
     python3 backbones/device_train.py train --carry .device/libero_goal_act_chunk_long --out $OUT/goal  # GPU machine
@@ -14,7 +14,7 @@ episode ends as LeRobotDataset pads them. It saves a checkpoint every `save_ever
 outputs/train/<suite>/<recipe>/checkpoints/<step>/pretrained_model, packs them in one tar in parts of at most
 15 MiB (the device tool returns files of at most 16 MiB), and `assemble` joins and checks them (sha256).
 
-backbones/train_image_act.py prepares the image-input ACT the same way; its frames travel as H.264.
+backbones/train_camera.py prepares the camera policies (ACT, Diffusion Policy) the same way; their frames travel as H.264.
 
 State recipes (STATE_RECIPES) are the lerobot-train recipes of backbones/train_backbones.py with the same
 policy (a test compares the configs), trained longer at a larger batch.
@@ -93,11 +93,10 @@ def write_init(cfg, meta, seed: int, carry: Path) -> None:
     from the seed)."""
     import torch
 
-    from lerobot.policies.act.modeling_act import ACTPolicy
     from lerobot.policies.factory import make_pre_post_processors
 
     torch.manual_seed(seed)
-    policy = ACTPolicy(cfg)
+    policy = policy_class(cfg.type)(cfg)
     pre, post = make_pre_post_processors(cfg, dataset_stats=meta.stats)
     init = carry / "init"
     policy.save_pretrained(init)
@@ -156,6 +155,19 @@ def assemble(back: Path, out_run: Path) -> Path:
 
 
 # ---------------------------------------------------------------- the GPU machine (or here): train
+def policy_class(kind: str):
+    """The LeRobot policy class of a config type the recipes use (act, diffusion)."""
+    if kind == "act":
+        from lerobot.policies.act.modeling_act import ACTPolicy
+
+        return ACTPolicy
+    if kind == "diffusion":
+        from lerobot.policies.diffusion.modeling_diffusion import DiffusionPolicy
+
+        return DiffusionPolicy
+    raise SystemExit(f"device_train: no recipe trains a {kind!r} policy; act or diffusion")
+
+
 def import_lerobot():
     """ACTPolicy, PreTrainedConfig and PolicyProcessorPipeline. On a machine with lerobot but without its dataset
     extra (PyAV: a bare GPU machine), lerobot.policies' package init fails on the dataset stack it imports; the
@@ -177,43 +189,52 @@ def import_lerobot():
     return ACTPolicy, PreTrainedConfig, PolicyProcessorPipeline
 
 
+def frame_index(episode: np.ndarray, deltas) -> tuple[np.ndarray, np.ndarray]:
+    """(N, len(deltas)) frame indices of each frame's t + delta, clamped to its episode's first and last frames,
+    and the pad mask (True outside the episode), as LeRobotDataset's delta_timestamps give them to a policy."""
+    n = len(episode)
+    first, last = np.empty(n, np.int64), np.empty(n, np.int64)
+    for e in np.unique(episode):
+        idx = np.flatnonzero(episode == e)
+        first[idx], last[idx] = idx[0], idx[-1]
+    raw = np.arange(n)[:, None] + np.asarray(list(deltas), np.int64)[None]
+    return np.clip(raw, first[:, None], last[:, None]), (raw > last[:, None]) | (raw < first[:, None])
+
+
 def chunk_index(episode: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray]:
     """(N, chunk) frame indices of each frame's action chunk, clamped to its episode's last frame, and the pad
     mask (True past the episode's end), as LeRobotDataset's delta_timestamps give them to ACT."""
-    n = len(episode)
-    last = np.empty(n, np.int64)
-    for e in np.unique(episode):
-        idx = np.flatnonzero(episode == e)
-        last[idx] = idx[-1]
-    raw = np.arange(n)[:, None] + np.arange(chunk)[None]
-    return np.minimum(raw, last[:, None]), raw > last[:, None]
+    return frame_index(episode, range(chunk))
 
 
 def train(carry: Path, out: Path, device: str, steps: int | None, max_minutes: float,
-          frames: dict[str, np.ndarray] | None = None) -> None:
-    """Train the carried recipe; `frames` adds inputs not in arrays.npz (the image ACT's decoded video)."""
+          frames: dict[str, np.ndarray] | None = None, data: Path | None = None) -> None:
+    """Train the carried recipe; `frames` adds inputs not in arrays.npz (the camera policies' decoded video);
+    `data` is where arrays.npz lies (default `carry`; the camera recipes of one suite share theirs)."""
     import torch
 
-    ACTPolicy, PreTrainedConfig, PolicyProcessorPipeline = import_lerobot()
+    _, PreTrainedConfig, PolicyProcessorPipeline = import_lerobot()
     recipe = json.loads((carry / "recipe.json").read_text())
     steps = int(steps or recipe["steps"])
     every = int(recipe.get("save_every") or steps)
     t0 = time.time()
-    arrays = {k: np.asarray(v) for k, v in np.load(carry / "arrays.npz").items()}
+    arrays = {k: np.asarray(v) for k, v in np.load((data or carry) / "arrays.npz").items()}
     arrays.update(frames or {})
     episode = arrays[EPISODE]
     cfg = PreTrainedConfig.from_pretrained(str(carry / "init"))
     cfg.device = device
     torch.manual_seed(recipe["seed"])  # the initial weights, as `prepare` drew them
     np.random.seed(recipe["seed"])
-    policy = ACTPolicy(cfg)
+    policy = policy_class(cfg.type)(cfg)
     policy.to(device).train()
     pre = PolicyProcessorPipeline.from_pretrained(str(carry / "init"), config_filename="policy_preprocessor.json",
                                                   overrides={"device_processor": {"device": device}})
     optim_cfg = policy.config.get_optimizer_preset()
     optimizer = optim_cfg.build(policy.get_optim_params())
-    idx, pad = chunk_index(episode, policy.config.chunk_size)
+    idx, pad = frame_index(episode, policy.config.action_delta_indices)
+    obs_deltas = policy.config.observation_delta_indices  # None: this frame only (ACT); Diffusion: its history
     dev = torch.device(device)
+    obs_idx = torch.from_numpy(frame_index(episode, obs_deltas)[0]).to(dev) if obs_deltas else None
     inputs = {}
     for k in policy.config.input_features:
         x = torch.from_numpy(np.ascontiguousarray(arrays[k])).to(dev)
@@ -245,7 +266,8 @@ def train(carry: Path, out: Path, device: str, steps: int | None, max_minutes: f
 
     for step in range(1, steps + 1):
         b = torch.randint(0, len(episode), (bs,), device=dev, generator=gen)
-        batch = {k: (v[b].float() / 255.0 if v.dtype == torch.uint8 else v[b]) for k, v in inputs.items()}
+        rows = b if obs_idx is None else obs_idx[b]  # (B,) or (B, n_obs_steps)
+        batch = {k: (v[rows].float() / 255.0 if v.dtype == torch.uint8 else v[rows]) for k, v in inputs.items()}
         batch[ACTION], batch["action_is_pad"] = action_t[idx_t[b]], pad_t[b]
         loss, _ = policy.forward(pre(batch))
         optimizer.zero_grad(set_to_none=True)
@@ -282,7 +304,7 @@ def train(carry: Path, out: Path, device: str, steps: int | None, max_minutes: f
 
 
 def add_train_parser(sub, help: str, carry: str | None, out: str, max_minutes: float):
-    """The `train` subcommand (what the GPU machine runs), shared with train_image_act.py."""
+    """The `train` subcommand (what the GPU machine runs), shared with train_camera.py."""
     t = sub.add_parser("train", help=help)
     t.add_argument("--carry", required=carry is None, default=carry)
     t.add_argument("--out", default=os.environ.get("OUT", out))

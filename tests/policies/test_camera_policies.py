@@ -1,4 +1,4 @@
-"""The image-input backbone's pipeline: camera scenes, recorded frames, and backbones/train_image_act.py.
+"""The camera policies' pipeline: camera scenes, recorded frames, and backbones/train_camera.py (ACT, Diffusion).
 
 One tiny dataset (LIBERO-Spatial task 0, init state 0, agentview at 64 x 64) is recorded once for the module.
 """
@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "backbones"))
 sys.path.insert(0, str(ROOT / "eval"))
 
-import train_image_act  # noqa: E402
+import train_camera  # noqa: E402
 
 pytestmark = pytest.mark.slow
 SIZE = 64
@@ -79,26 +79,73 @@ def test_recorded_frames_are_what_lerobot_eval_feeds_an_image_policy(dataset):
         vec.close()
 
 
-def test_prepare_train_assemble_gives_a_policy_the_harness_runs(dataset, tmp_path, monkeypatch):
-    """prepare -> train (2 steps on the CPU, in a subprocess as the GPU machine runs it) -> assemble gives a
-    checkpoint whose weights are the run's (sha256), that reads the camera frame, and acts on a camera scene."""
-    carry, back, run = tmp_path / "carry", tmp_path / "back", tmp_path / "run"
-    train_image_act.prepare(dataset, carry)
-    assert not (carry / "init" / "model.safetensors").exists()  # drawn from the seed where it trains
-    frames = train_image_act.decode_video(next((carry / "video").glob("*.mp4")))
-    images, *_ = train_image_act._frames(dataset)
-    assert frames.shape == images.shape
-    assert np.abs(frames.astype(int) - images).mean() < 1.5  # H.264 at crf 10: under 1.5 of 255 per pixel
-    tr = subprocess.run([sys.executable, str(ROOT / "backbones/train_image_act.py"), "train", "--carry", str(carry),
+@pytest.fixture(scope="module")
+def trained(dataset, tmp_path_factory) -> Path:
+    """prepare (both recipes) -> train-all (2 steps each on the CPU, in subprocesses as the GPU machine runs them);
+    the folder the runs came back in."""
+    root = tmp_path_factory.mktemp("camera") / "carry"
+    train_camera.prepare(dataset, root / "libero_spatial")
+    back = root.parent / "back"
+    tr = subprocess.run([sys.executable, str(ROOT / "backbones/train_camera.py"), "train-all", "--carry", str(root),
                          "--out", str(back), "--device", "cpu", "--steps", "2"], capture_output=True, text=True,
                         cwd=ROOT, env={**__import__("os").environ, "OMP_NUM_THREADS": "1"})
-    assert tr.returncode == 0, tr.stderr[-2000:]
+    assert tr.returncode == 0, tr.stdout[-2000:] + tr.stderr[-2000:]
+    assert "2 of 2 runs done" in tr.stdout
+    return back
+
+
+def test_prepare_carries_the_frames_once_and_each_recipe_without_weights(dataset, trained):
+    suite = trained.parent / "carry" / "libero_spatial"
+    for recipe in train_camera.RECIPES:
+        assert (suite / recipe / "init" / "config.json").exists()
+        assert not (suite / recipe / "init" / "model.safetensors").exists()  # drawn from the seed where it trains
+    frames = train_camera.decode_video(next((suite / "video").glob("*.mp4")))
+    images, *_ = train_camera._frames(dataset)
+    assert frames.shape == images.shape
+    assert np.abs(frames.astype(int) - images).mean() < 1.5  # H.264 at crf 10: under 1.5 of 255 per pixel
+
+
+def test_the_diffusion_policy_trains_on_observation_histories_and_acts(trained, tmp_path):
+    """Diffusion Policy's batch holds its 2-frame history (clamped at an episode's first frame) and its 16-step
+    horizon from t - 1; the assembled checkpoint acts on a camera scene every step (it reads every frame)."""
+    from device_train import frame_index
+
+    idx, pad = frame_index(np.array([0, 0, 0, 1, 1]), [-1, 0, 1])
+    np.testing.assert_array_equal(idx, [[0, 0, 1], [0, 1, 2], [1, 2, 2], [3, 3, 4], [3, 4, 4]])
+    np.testing.assert_array_equal(pad, [[1, 0, 0], [0, 0, 0], [0, 0, 1], [1, 0, 0], [0, 0, 1]])
+    ckpt = train_camera.assemble(trained / "libero_spatial_diffusion", tmp_path / "run")
+
+    from backbones import LeRobotBackbone
+
+    from lerobot_physvla.sim.scenes import make_scene
+
+    policy = LeRobotBackbone(str(ckpt))
+    assert policy.policy.config.type == "diffusion" and policy.actions_per_call == 8
+    scene = make_scene(f"libero_spatial+agentview{SIZE}/0")
+    scene.reset(0)
+    policy.reset(0)
+    for _ in range(3):
+        assert policy.reads_observation()
+        a = policy.act(scene, scene.read())
+        assert a.shape == (7,) and np.isfinite(a).all()
+        scene.step(np.clip(a, -1, 1))
+
+
+def test_prepare_train_assemble_gives_a_policy_the_harness_runs(trained, tmp_path, monkeypatch):
+    """The ACT run's checkpoint: its weights are the run's (sha256), it reads the camera frame, and acts on a camera
+    scene, rendering one frame a chunk."""
+    back, run = trained / "libero_spatial_act", tmp_path / "run"
     parts = sorted(back.glob("run.tar.part*"))
-    assert parts and all(p.stat().st_size <= train_image_act.device_train.PART_BYTES for p in parts)
-    ckpt = train_image_act.assemble(back, run)
-    (parts[0]).write_bytes(b"x" + parts[0].read_bytes()[1:])  # a damaged part is refused
+    assert parts and all(p.stat().st_size <= train_camera.device_train.PART_BYTES for p in parts)
+    ckpt = train_camera.assemble(back, run)
+    damaged = tmp_path / "damaged"
+    damaged.mkdir()
+    for f in back.iterdir():
+        (damaged / f.name).write_bytes(f.read_bytes())
+    first = sorted(damaged.glob("run.tar.part*"))[0]
+    first.write_bytes(b"x" + first.read_bytes()[1:])  # a damaged part is refused
     with pytest.raises(SystemExit, match="sha256"):
-        train_image_act.assemble(back, tmp_path / "run2")
+        train_camera.assemble(damaged, tmp_path / "run2")
 
     from backbones import LeRobotBackbone
 
