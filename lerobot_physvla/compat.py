@@ -4,6 +4,8 @@ lerobot 0.6.1 has no hook for a third-party post-processing stage in `lerobot-ev
 module (and only this module) reaches into it:
 - `wrapped_libero_env_factories`: wraps each LIBERO sub-env factory that
   `lerobot.envs.libero.create_libero_envs` builds (for the `libero_physvla` env type);
+- `extra_libero_suites`: lets `create_libero_envs` resolve and build suites beyond hf-libero's
+  registry (LIBERO-PRO's, for the `libero_physvla` env type), lerobot's own suites unchanged;
 - `vector_env_class`: lerobot's own choice of Sync/AsyncVectorEnv;
 - `install_eval_hook`: replaces `lerobot.scripts.lerobot_eval.eval_main` with a version that
   (1) adapts the env config (the caller turns `libero` into `libero_physvla`: state export),
@@ -70,6 +72,36 @@ def wrapped_libero_env_factories(wrap: Callable):
         yield
     finally:
         lerobot_libero._make_env_fns = original
+
+
+@contextlib.contextmanager
+def extra_libero_suites(resolve: Callable[[str], object | None], make_env_fns: Callable[..., list]):
+    """While active, `create_libero_envs` takes a suite name `resolve(name)` answers (None: not one of these; lerobot's
+    own registry resolves it, as before) and builds that suite's sub-env factories with `make_env_fns(**kwargs)` (the
+    keyword arguments of lerobot's `_make_env_fns`); every other suite is lerobot's, untouched. Enter it before
+    `wrapped_libero_env_factories`, which then wraps these factories too."""
+    from lerobot.envs import libero as lerobot_libero
+
+    original_get, original_fns = lerobot_libero._get_suite, lerobot_libero._make_env_fns
+    ours: list[object] = []
+
+    def get_suite(name: str):
+        suite = resolve(name)
+        if suite is None:
+            return original_get(name)
+        ours.append(suite)
+        return suite
+
+    def env_fns(**kwargs):
+        if any(kwargs.get("suite") is s for s in ours):
+            return make_env_fns(**kwargs)
+        return original_fns(**kwargs)
+
+    lerobot_libero._get_suite, lerobot_libero._make_env_fns = get_suite, env_fns
+    try:
+        yield
+    finally:
+        lerobot_libero._get_suite, lerobot_libero._make_env_fns = original_get, original_fns
 
 
 def install_eval_hook(

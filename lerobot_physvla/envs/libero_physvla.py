@@ -1,6 +1,7 @@
 """Env type `libero_physvla`: lerobot's LIBERO env plus the physical-state export, optionally camera-free.
 
     lerobot-eval --env.type=libero_physvla --env.task=libero_spatial [--env.cameras=false] ...
+    lerobot-eval --env.type=libero_physvla --env.task=libero_object_swap ...   # a LIBERO-PRO suite (libero_pro.py)
 
 Each sub-env (in the main process or an async worker) is lerobot's own `LiberoEnv` inside
 `PhysVLAStateExport`, a gym.Wrapper that adds to every observation
@@ -172,9 +173,13 @@ class LiberoPhysVLAEnvConfig(LiberoEnvConfig):
     def create_envs(self, n_envs: int, use_async_envs: bool = False):
         from lerobot.envs.libero import create_libero_envs
 
+        from lerobot_physvla.envs import libero_pro
+
         if self.task is None:
             raise ValueError("libero_physvla requires --env.task (e.g. libero_spatial)")
-        with compat.wrapped_libero_env_factories(partial(_wrapped, cameras=self.cameras, perception=self.perception)):
+        # LIBERO-PRO's suites (envs/libero_pro.py) resolve here too; the state export wraps every sub-env
+        with (compat.extra_libero_suites(libero_pro.resolve, libero_pro.make_env_fns),
+              compat.wrapped_libero_env_factories(partial(_wrapped, cameras=self.cameras, perception=self.perception))):
             return create_libero_envs(
                 task=self.task, n_envs=n_envs, camera_name=self.camera_name, init_states=self.init_states,
                 gym_kwargs=self.gym_kwargs, env_cls=compat.vector_env_class(use_async_envs, n_envs),

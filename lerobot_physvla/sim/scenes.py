@@ -8,7 +8,9 @@ drive LIBERO, MetaWorld, robosuite Lift, gymnasium-robotics Fetch and lerobot-en
 
 Scenes by name (`make_scene`):
     <suite>/<task id>          a LIBERO task (libero_spatial, libero_object, libero_goal, libero_10),
-                               state-only, with lerobot's horizon for its suite
+                               state-only, with lerobot's horizon for its suite; or a LIBERO-PRO task (a perturbed
+                               suite, libero_pro.py: libero_object_swap, libero_object_temp_x0.3,
+                               libero_spatial_with_milk, libero_spatial_object, ...) with its base suite's horizon
     <suite>+agentview<N>/<id>  the same task with LIBERO's agentview camera rendered at N x N pixels: its
                                frame joins the policy's observation (`observation.images.image`, as
                                `lerobot-eval --env.type=libero` gives it), for image-input policies
@@ -60,6 +62,13 @@ class Scene(Protocol):
 HORIZONS = {"libero_spatial": 280, "libero_object": 280, "libero_goal": 300, "libero_10": 520, "libero_90": 400}
 
 
+def libero_horizon(suite: str) -> int:
+    """Control steps per episode of a LIBERO suite: lerobot's for it, a LIBERO-PRO suite its base suite's."""
+    from lerobot_physvla.sim.libero_pro import base_suite
+
+    return HORIZONS.get(base_suite(suite), 280)
+
+
 CAMERA_TAG = "+agentview"  # <suite>+agentview<N>: the suite's scenes with the agentview camera at N x N pixels
 
 
@@ -81,7 +90,8 @@ def agentview_frame(raw_obs: dict) -> np.ndarray:
 
 
 class LiberoScene:
-    """One LIBERO task, state-only unless `camera_size` > 0: init state `seed % 50`, env seeded with `seed`. A task
+    """One LIBERO task, state-only unless `camera_size` > 0: init state `seed % 50` (a suite with fewer, as LIBERO-PRO's
+    with_milk, refuses a seed past its last), env seeded with `seed`. A task
     whose goal the corrector does not model (no On / In predicate: an Open, a TurnOn) has no state source: `read()`
     gives a state marked valid = -1 (the corrector passes through, unsupported_goal) and `unsupported_goal` names
     the goal.
@@ -105,7 +115,7 @@ class LiberoScene:
 
         self.camera_size, self.every_step = int(camera_size), bool(every_step and camera_size)
         self.name = f"{suite}{CAMERA_TAG}{self.camera_size}/{task_id}" if self.camera_size else f"{suite}/{task_id}"
-        self.horizon = HORIZONS.get(suite, 280)
+        self.horizon = libero_horizon(suite)
         self.task = libero_sim.load_task(suite, task_id)
         self.env = libero_sim.make_libero_env(self.task, cameras=self.every_step, camera_size=self.camera_size or 256,
                                               renderer=self.camera_size > 0, camera_names=("agentview",))
@@ -118,6 +128,9 @@ class LiberoScene:
         from lerobot_physvla.sim import libero_sim
         from lerobot_physvla.sources.robosuite import RobosuiteStateSource, UnsupportedGoal
 
+        n = len(self.task.init_states)
+        if n < 50 and seed >= n:  # LIBERO-PRO's with_milk suites have 10: refuse to wrap onto states run already
+            raise ValueError(f"physvla: {self.name} has {n} init states, 0-{n - 1}; seed {seed} would repeat one")
         self.raw_obs = libero_sim.reset_to_init_state(self.env, self.task, seed)
         self._steps = 0
         if self.source is None and not self.unsupported_goal:

@@ -32,6 +32,18 @@ def test_units_run_once_and_resume(tmp_path):
     assert metrics.wilson_interval(1, 1)[1] == 1.0
 
 
+@pytest.mark.slow
+def test_a_libero_pro_scene_runs_as_its_base_suite_does(tmp_path):
+    """A LIBERO-PRO suite is a scene like libero_object (sim/libero_pro.py): its base suite's horizon, the clean shape
+    expert (the libero_object studies' teacher) solving the swapped task 0 from init state 0 (measured: 108 steps)."""
+    unit = Unit("shape_clean", "phys_el", PhysVLAConfig.paper(mode="phys_el").to_dict(), task_id=0, first_seed=0,
+                episodes=1, expert={"teacher": "shape"}, scene="libero_object_swap")
+    assert unit.key == "shape_clean__phys_el__libero_object_swap_t0__s0-0"
+    (rec,), _ = run_units([unit], tmp_path, workers=1)
+    assert rec["scene"] == "libero_object_swap" and rec["success"] and rec["steps"] < 280
+    assert sum(rec["passthrough"].values()) == 0
+
+
 def _strip_timing(records):
     return [{k: v for k, v in r.items() if k != "t_us_p50"} for r in records]
 

@@ -49,7 +49,7 @@ def test_corrected_state_only_run_executes_exactly_what_the_corrector_says(polic
     # two rollout batches: the recorder compacts the first between the rollouts (the eval hook's end_batch)
     state_only = ["--env.type=libero_physvla", "--env.cameras=false", "--eval.n_episodes=4",
                   "--eval.batch_size=2", "--env.episode_length=12"]
-    r = _eval(policies["state"], out, [*state_only, "--policy.postprocess=physvla", "--physvla.mode=phys_el",
+    r = _eval(policies["state"], out, [*state_only, "--policy.postprocess=physvla", "--physvla.preset=paper",
                                        "--physvla.gripper_rule=veto", "--physvla.chunk_phase_caps=0,0.05,0,1"],
               {"PHYSVLA_SAVE_STATES": "1"})
     # the summary table is printed and the report links a plot per episode
@@ -165,3 +165,19 @@ def test_physvla_eval_console_script_takes_the_same_arguments(policies, tmp_path
                                    "--physvla.mode=phys"], exe="lerobot-physvla-eval")
     diag = json.loads((out / "physvla_diagnostics.json").read_text())
     assert diag["physvla_config"]["mode"] == "phys" and diag["steps"] == 5
+
+
+def test_a_libero_pro_suite_runs_under_plain_libero_and_its_unmodelled_goal_passes_through(policies, tmp_path):
+    """`--env.type=libero` (cameras on) with --policy.postprocess=physvla becomes libero_physvla, which builds
+    LIBERO-PRO's libero_goal_swap (sim/libero_pro.py); its task 0 keeps the base's "open the middle drawer": counted
+    as unsupported_goal, every step."""
+    out = tmp_path / "pro"
+    r = _eval(policies["image"], out, ["--env.type=libero", "--env.task=libero_goal_swap", "--env.task_ids=[0]",
+                                       "--eval.n_episodes=1", "--eval.batch_size=1", "--env.episode_length=6",
+                                       "--policy.postprocess=physvla"])
+    assert "suite=libero_goal_swap | task_id=0" in r.stdout
+    info = json.loads((out / "eval_info.json").read_text())
+    assert info["per_group"]["libero_goal_swap"]["n_episodes"] == 1
+    diag = json.loads((out / "physvla_diagnostics.json").read_text())
+    assert diag["passthrough"] == {"unsupported_goal": 6}
+    assert "open(wooden_cabinet_1_middle_region) has no On / In(object, target) predicate" in r.stderr
