@@ -59,7 +59,12 @@ def _convert(name: str, value: str, hint) -> object:
 ROBOT_FLAGS: dict[str, object] = {"arm": str, "object_xyz": tuple[float, ...], "target_xyz": tuple[float, ...],
                                   "object_key": str, "target_key": str, "pose_age_key": str, "velocity_cutoff_hz": float,
                                   "state_delay_s": float, "reading_noise_deg": float, "noise_snr_min": float,
-                                  "arm_geometry": bool}
+                                  "arm_geometry": bool,
+                                  # object / target positions from ArUco markers in a camera frame (sources/markers.py)
+                                  "pose_source": str, "camera": str, "object_marker": int, "target_marker": int,
+                                  "marker_size_m": float, "calibration": str, "marker_dictionary": str,
+                                  "marker_max_error_m": float, "object_marker_offset": tuple[float, ...],
+                                  "target_marker_offset": tuple[float, ...]}
 
 
 def split_argv(argv: list[str], robot: bool = False) -> tuple[str | None, dict[str, object], list[str]]:

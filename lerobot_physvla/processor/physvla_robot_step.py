@@ -37,9 +37,16 @@ from lerobot_physvla.arms.model import ArmError, ArmModel
 from lerobot_physvla.sources.joint_state import JointStateSource
 from lerobot_physvla.arms.joint_targets import VIRTUAL, JointTargetAdapter
 from lerobot_physvla.core.noise_guard import BranchBNoiseGuard
+from lerobot_physvla.sources.calibration import load_calibration
+from lerobot_physvla.sources.markers import MarkerConfig, MarkerReading, MarkerSource
 
 
 TIMES_KEPT = 10_000  # ticks whose times summary() takes its percentiles over
+POSE_SOURCES = ("markers",)  # besides the default: fixed points (object_xyz) or observation keys (object_key)
+MARKER_KEY = "physvla.marker.{}"  # where the step puts a marker's position (3 floats, m) for the state source
+MARKER_AGE_KEY = "physvla.marker.pose_age"  # ... and the positions' age (control steps)
+MARKER_FIELDS = ("camera", "object_marker", "target_marker", "marker_size_m", "calibration", "object_marker_offset",
+                 "target_marker_offset")
 
 
 def _finite(v) -> bool:
@@ -62,6 +69,19 @@ class PhysVLARobotActionStep(ProcessorStep):
         object_key, target_key: raw-observation keys holding them (a perception step fills them).
         pose_age_key: a raw-observation key where the perception step reports the poses' age, control steps
             (None: current); the corrector acts on none older than config's pose_max_age_steps.
+        pose_source: None (the object / target from the fields above) or "markers": from ArUco markers in a camera
+            frame of the raw observation (sources/markers.py), with:
+        camera: the raw-observation key of the camera's frame ((H, W, 3) uint8 RGB, as lerobot's cameras give it).
+        object_marker, target_marker: the markers' ids (either may stay a fixed point or a key: object_xyz, ...).
+        marker_size_m: the printed markers' black square's side, m.
+        calibration: the camera's calibration file (sources/calibration.py; lerobot-physvla-calibrate-camera).
+        marker_dictionary: the markers' cv2.aruco dictionary.
+        marker_max_error_m: a marker position whose error bound is larger (m) is not used (pose_error_high), and
+            the corrector is told this much pose error (its pose_error_m, if that is smaller).
+        object_marker_offset, target_marker_offset: from the marker's centre to the point the corrector reads, m,
+            base frame (e.g. [0, 0, -0.02]: a marker on top of a 4 cm block, to the block's centre).
+        pose_counts: Counter of "<object|target> <reason>" over the ticks a marker gave no current position
+            (sources/markers.py REASONS), each warned once.
         config: PhysVLAConfig fields (default: the `arm` preset, the approach veto alone); the action layout is
             the virtual Cartesian one (arms/joint_targets.py) and Branch B weights task-space.
         arm_geometry: the approach veto uses the arm's own gripper geometry (ArmSpec.veto_height_m,
@@ -84,6 +104,16 @@ class PhysVLARobotActionStep(ProcessorStep):
     object_key: str | None = None
     target_key: str | None = None
     pose_age_key: str | None = None
+    pose_source: str | None = None
+    camera: str | None = None
+    object_marker: int | None = None
+    target_marker: int | None = None
+    marker_size_m: float | None = None
+    calibration: str | None = None
+    marker_dictionary: str = "DICT_4X4_50"
+    marker_max_error_m: float = 0.01
+    object_marker_offset: list[float] | None = None
+    target_marker_offset: list[float] | None = None
     config: dict[str, Any] = field(default_factory=lambda: PRESETS[ARM_PRESET].to_dict())
     arm_geometry: bool = True
     velocity_cutoff_hz: float | None = 5.0
@@ -92,14 +122,21 @@ class PhysVLARobotActionStep(ProcessorStep):
     noise_snr_min: float = 3.0
     passthrough_counts: Counter = field(default_factory=Counter, init=False, repr=False)
     branch_b_off: Counter = field(default_factory=Counter, init=False, repr=False)
+    pose_counts: Counter = field(default_factory=Counter, init=False, repr=False)
 
     def __post_init__(self) -> None:
         model = ArmModel(self.arm)  # unknown arm, model, joints: ArmError now
-        self.source = JointStateSource(model, 1.0 / self.fps, self.object_xyz, self.target_xyz, self.object_key,
-                                       self.target_key, self.velocity_cutoff_hz, self.state_delay_s,
-                                       self.reading_noise_deg, self.pose_age_key)
-        self.adapter = JointTargetAdapter(model)
         cfg = PhysVLAConfig.from_dict(self.config).replace(layout=VIRTUAL, weighting="task_space")
+        self.markers = self._marker_source(cfg)  # None without pose_source=markers; a bad setting: ArmError now
+        keys = {"object": self.object_key, "target": self.target_key, "age": self.pose_age_key}
+        if self.markers is not None:
+            keys.update({n: MARKER_KEY.format(n) for n in self.markers.markers}, age=MARKER_AGE_KEY)
+            # the corrector is told the bound every position used is within (pose_error_high refuses the others)
+            cfg = cfg.replace(pose_error_m=max(cfg.pose_error_m, self.marker_max_error_m))
+        self.source = JointStateSource(model, 1.0 / self.fps, self.object_xyz, self.target_xyz, keys["object"],
+                                       keys["target"], self.velocity_cutoff_hz, self.state_delay_s,
+                                       self.reading_noise_deg, keys["age"])
+        self.adapter = JointTargetAdapter(model)
         spec = model.spec
         if self.arm_geometry:
             geometry = {k: getattr(spec, k) for k in ("veto_height_m", "veto_reach_m") if getattr(spec, k) is not None}
@@ -128,6 +165,66 @@ class PhysVLARobotActionStep(ProcessorStep):
         self.changed: Counter = Counter()
         self._t_us = np.zeros(TIMES_KEPT)  # the last TIMES_KEPT ticks' times (us), a ring: memory stays flat
 
+    def _marker_source(self, cfg: PhysVLAConfig) -> MarkerSource | None:
+        """The marker pose source pose_source=markers asks for (None without it); ArmError, one line saying what to
+        give, for a setting that cannot work (before the robot moves)."""
+        given = [k for k in MARKER_FIELDS if getattr(self, k) is not None]
+        if self.pose_source is None:
+            if given:
+                raise ArmError(f"physvla: {', '.join(given)} need --physvla.pose_source=markers")
+            return None
+        if self.pose_source not in POSE_SOURCES:
+            raise ArmError(f"physvla: pose_source={self.pose_source!r}; choose markers (or leave it out: object_xyz / "
+                           "object_key, target_xyz / target_key)")
+        if self.camera is None or self.calibration is None or self.marker_size_m is None:
+            raise ArmError("physvla: pose_source=markers needs --physvla.camera=<the robot's camera key>, "
+                           "--physvla.calibration=<camera file> and --physvla.marker_size_m=<printed side, m>")
+        wanted = {n: getattr(self, f"{n}_marker") for n in ("object", "target")
+                  if getattr(self, f"{n}_marker") is not None}
+        if not wanted:
+            raise ArmError("physvla: pose_source=markers needs --physvla.object_marker=<id> and/or "
+                           "--physvla.target_marker=<id>")
+        for n in wanted:
+            both = [k for k in (f"{n}_xyz", f"{n}_key") if getattr(self, k) is not None]
+            if both:
+                raise ArmError(f"physvla: the {n} is given twice ({n}_marker and {', '.join(both)}); give one")
+        if self.pose_age_key is not None:
+            raise ArmError("physvla: pose_age_key is a perception step's own; with pose_source=markers the poses' age "
+                           "is the markers'")
+        try:
+            offsets = {n: tuple(getattr(self, f"{n}_marker_offset")) for n in ("object", "target")
+                       if getattr(self, f"{n}_marker_offset") is not None}
+            mc = MarkerConfig(float(self.marker_size_m), self.marker_dictionary, max_error_m=self.marker_max_error_m,
+                              max_age_steps=cfg.pose_max_age_steps)
+            return MarkerSource(load_calibration(self.calibration), wanted, mc, offsets)
+        except (ValueError, TypeError) as e:
+            raise ArmError(f"physvla: {e}") from None
+
+    def _marker_poses(self, observation: dict) -> dict:
+        """The observation with the markers' positions and age (MARKER_KEY, MARKER_AGE_KEY) from this tick's frame;
+        each reason a marker gives no current position is counted in pose_counts and warned once. Never raises: a
+        failure leaves no position (the corrector passes through: missing_pose)."""
+        obs = dict(observation)
+        ages = []
+        try:
+            readings = self.markers.observe(observation.get(self.camera))
+        except Exception as e:  # noqa: BLE001 - observe does not raise; this is the last net
+            readings = {}
+            self._warn("marker_error", f"{type(e).__name__}: {e}")
+        for name in self.markers.markers:
+            r: MarkerReading | None = readings.get(name)
+            pos = None if r is None else r.position_m
+            obs[MARKER_KEY.format(name)] = np.full(3, np.nan) if pos is None else pos
+            ages.append(0.0 if pos is None else float(r.age_steps))
+            if r is not None and r.reason is not None:
+                key = f"{name} {r.reason}"
+                self.pose_counts[key] += 1
+                if self.pose_counts[key] == 1:
+                    warnings.warn(f"physvla: the {name}'s marker {r.marker_id}: {r.reason} ({r.detail}); "
+                                  f"counted in pose_counts", RuntimeWarning, stacklevel=4)
+        obs[MARKER_AGE_KEY] = max(ages)
+        return obs
+
     def _warn(self, why: str, detail: str) -> None:
         self.passthrough_counts[why] += 1
         if self.passthrough_counts[why] == 1:
@@ -146,6 +243,12 @@ class PhysVLARobotActionStep(ProcessorStep):
         observation = transition.get(TransitionKey.OBSERVATION)
         if not isinstance(action, dict) or not isinstance(observation, dict):
             return transition
+        if self.markers is not None:
+            if not self._checked and self.camera not in observation:
+                have = sorted(k for k in observation if isinstance(k, str))
+                raise ArmError(f"physvla: the robot's observation has no camera {self.camera!r} (it has {have}); give "
+                               "--physvla.camera=<its camera's key>")
+            observation = self._marker_poses(observation)
         if not self._checked:
             self._check(action, observation)  # before any action reaches the robot: may raise
         t0 = time.perf_counter()
@@ -246,11 +349,15 @@ class PhysVLARobotActionStep(ProcessorStep):
         p50, p99 = np.percentile(t, [50, 99])
         fmt = lambda c: ", ".join(f"{k} {v}" for k, v in sorted(c.items())) or "none"  # noqa: E731
         c = self.cfg
+        markers = ""
+        if self.markers is not None and self.markers.seconds:
+            markers = (f"; markers: no current position {fmt(self.pose_counts)}, "
+                       f"{np.median(self.markers.seconds) * 1e3:.1f} ms per frame p50")
         return (f"physvla: {self.ticks} ticks on arm {self.arm!r} (mode {c.mode}, gripper rule {c.gripper_rule}, "
                 f"place rule {c.place_rule}); "
                 f"gripper target changed on {self.changed['gripper']}, joint targets on {self.changed['joints']}; "
                 f"passed through: {fmt(self.passed_through)}; Branch B off: {fmt(self.branch_b_off)}; "
-                f"time per tick p50 {p50:.0f} us, p99 {p99:.0f} us")
+                f"time per tick p50 {p50:.0f} us, p99 {p99:.0f} us{markers}")
 
     @property
     def passed_through(self) -> Counter:
@@ -262,12 +369,17 @@ class PhysVLARobotActionStep(ProcessorStep):
         """An episode starts: the state source and the corrector's memory start afresh."""
         self.source.reset()
         self.corrector.reset()
+        if self.markers is not None:
+            self.markers.reset()
         if self.guard is not None:
             self.guard.reset()
 
     def get_config(self) -> dict[str, Any]:
+        markers = {} if self.pose_source is None else {  # only with markers: a file saved without stays as it was
+            k: getattr(self, k) for k in ("pose_source", *MARKER_FIELDS, "marker_dictionary", "marker_max_error_m")}
         return {"arm": self.arm, "fps": self.fps, "object_xyz": self.object_xyz, "target_xyz": self.target_xyz,
                 "object_key": self.object_key, "target_key": self.target_key, "pose_age_key": self.pose_age_key,
+                **markers,
                 "config": self.config,
                 "arm_geometry": self.arm_geometry,
                 "velocity_cutoff_hz": self.velocity_cutoff_hz, "state_delay_s": self.state_delay_s,

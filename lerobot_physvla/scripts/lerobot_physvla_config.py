@@ -66,7 +66,7 @@ def add_robot_corrector(policy_dir: str | Path, cfg: PhysVLAConfig, robot: dict)
     from lerobot_physvla.processor.physvla_robot_step import PhysVLARobotActionStep
     from lerobot_physvla.scripts.lerobot_physvla_rollout import ROBOT_PROCESSOR
 
-    fields = {k: list(v) if k.endswith("_xyz") else v for k, v in robot.items()}
+    fields = {k: list(v) if k.endswith(("_xyz", "_offset")) else v for k, v in robot.items()}
     step = PhysVLARobotActionStep(config=cfg.to_dict(), **fields)  # checked now: arm, points, keys
     pipe = RobotProcessorPipeline(steps=[step], name="physvla_robot_processor",
                                   to_transition=robot_action_observation_to_transition,

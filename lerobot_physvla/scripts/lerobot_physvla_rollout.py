@@ -94,13 +94,14 @@ def activate_rollout(argv: list[str]) -> None:
                 cfg = build_config(overrides, default=ARM_PRESET)
                 said = describe(cfg, overrides, default=ARM_PRESET)
                 fields["config"] = cfg.to_dict()
-            for k in ("object_xyz", "target_xyz"):
+            for k in ("object_xyz", "target_xyz", "object_marker_offset", "target_marker_offset"):
                 if k in robot:
                     robot[k] = list(robot[k])
-                    fields.pop(k.replace("xyz", "key"), None)  # a fixed point replaces a saved key ...
-            for k in ("object_key", "target_key"):
-                if k in robot:
-                    fields.pop(k.replace("key", "xyz"), None)  # ... and a key a saved fixed point
+            for name in ("object", "target"):  # a fixed point, a key or a marker given replaces a saved other one
+                given = [w for w in ("xyz", "key", "marker") if f"{name}_{w}" in robot]
+                for w in ("xyz", "key", "marker"):
+                    if given and w not in given:
+                        fields.pop(f"{name}_{w}", None)
             fields.update(robot)
             fields["fps"] = _fps(rest)
             step = PhysVLARobotActionStep(**fields)
