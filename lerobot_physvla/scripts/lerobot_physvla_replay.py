@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_physvla.flags import FlagError, build_config, describe, split_argv
+from lerobot_physvla.flags import FlagError, build_config, split_argv
 
 MODES = ("offline", "resim", "policy")
 
@@ -92,7 +92,6 @@ def parse(argv: list[str]) -> tuple[ReplayArgs, object]:
     if post == "none":
         raise FlagError("--policy.postprocess=none: replay always runs the corrector; drop the flag")
     cfg = build_config(overrides)
-    print(describe(cfg, overrides), file=sys.stderr)
     try:
         args = draccus.parse(config_class=ReplayArgs, args=rest)
     except SystemExit as e:
@@ -212,13 +211,12 @@ def _summary(args, cfg, data, records, extra, note, t_offline) -> dict:
     frames = sum(r["frames"] for r in records)
     changed = sum(r["frames_changed"] for r in records)
     flagged = sum(len(r["flagged"]) for r in records)
-    from lerobot_physvla.core.config import PRESETS
+    from lerobot_physvla.core.config import PRESETS, differing
 
-    name = next((k for k, v in PRESETS.items() if v == cfg), None)
-    paper = PRESETS["paper"].to_dict()
-    diff = ", ".join(f"{k}={v}" for k, v in cfg.to_dict().items() if paper.get(k) != v)
+    name = min(PRESETS, key=lambda k: (len(differing(cfg, k)), k != "default"))  # the preset it departs least from
+    diff = ", ".join(f"{k}={v!r}" for k, v in differing(cfg, name).items())
     lines = {
-        "corrector": f"preset {name}" if name else f"the paper's settings with {diff or 'nothing changed'}",
+        "corrector": f"preset {name}" + (f"; fields that differ from it: {diff}" if diff else ""),
         "frames changed (recorded actions)": f"{changed}/{frames} ({changed / max(frames, 1) * 100:.1f} %)",
         "flagged frames": f"{flagged} (gripper close far from the object, release in transport; see replay_episodes.jsonl)",
         "offline replay": f"{frames} frames in {t_offline:.2f} s (kernels loaded once per process included)",

@@ -96,7 +96,7 @@ def trained(dataset, tmp_path_factory) -> Path:
 
 def test_prepare_carries_the_frames_once_and_each_recipe_without_weights(dataset, trained):
     suite = trained.parent / "carry" / "libero_spatial"
-    for recipe in train_camera.RECIPES:
+    for recipe in train_camera.GPU_RECIPES:
         assert (suite / recipe / "init" / "config.json").exists()
         assert not (suite / recipe / "init" / "model.safetensors").exists()  # drawn from the seed where it trains
     frames = train_camera.decode_video(next((suite / "video").glob("*.mp4")))
