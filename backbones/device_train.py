@@ -303,9 +303,9 @@ def train(carry: Path, out: Path, device: str, steps: int | None, max_minutes: f
           f"{len(blob) / 2**20:.1f} MiB in {-(-len(blob) // PART_BYTES)} parts -> {out}")
 
 
-def add_train_parser(sub, help: str, carry: str | None, out: str, max_minutes: float):
-    """The `train` subcommand (what the GPU machine runs), shared with train_camera.py."""
-    t = sub.add_parser("train", help=help)
+def add_train_parser(sub, help: str, carry: str | None, out: str, max_minutes: float, name: str = "train"):
+    """The `train` subcommand (what the GPU machine runs), shared with train_camera.py (also its `train-all`)."""
+    t = sub.add_parser(name, help=help)
     t.add_argument("--carry", required=carry is None, default=carry)
     t.add_argument("--out", default=os.environ.get("OUT", out))
     t.add_argument("--device", default="cuda")

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shutil
 import sys
 from pathlib import Path
@@ -215,12 +214,8 @@ def main() -> None:
     p.add_argument("--recipes", default=",".join(GPU_RECIPES), help=f"of {', '.join(RECIPES)}")
     device_train.add_train_parser(sub, "the GPU machine (or here): train one prepared recipe (<root>/<suite>/<recipe>)",
                                   None, "outputs/camera_run", 7.5)
-    t = sub.add_parser("train-all", help="the GPU machine: every prepared recipe side by side")
-    t.add_argument("--carry", default=str(CARRY))
-    t.add_argument("--out", default=os.environ.get("OUT", "outputs/camera_run"))
-    t.add_argument("--device", default="cuda")
-    t.add_argument("--steps", type=int, default=None)
-    t.add_argument("--max-minutes", type=float, default=7.5)
+    device_train.add_train_parser(sub, "the GPU machine: every prepared recipe side by side", str(CARRY),
+                                  "outputs/camera_run", 7.5, name="train-all")
     a = sub.add_parser("assemble", help="here: join what a device run returned into a checkpoint folder")
     a.add_argument("back", help="the folder holding run.json and run.tar.part*")
     a.add_argument("--out", required=True, help="e.g. outputs/train/libero_object/act_camera")
