@@ -5,6 +5,7 @@ state, no object positions.
     .venv/bin/python backbones/train_camera.py prepare --suite libero_object     # here: both recipes' inits, the frames
     python3 backbones/train_camera.py train-all --carry .device/camera --device cuda   # GPU machine: every prepared run
     .venv/bin/python backbones/train_camera.py assemble BACK/libero_object_act --out outputs/train/libero_object/act_camera
+    .venv/bin/python backbones/train_camera.py commit <run>/checkpoints/005000/pretrained_model --name object_act_camera
 
 The policies see what a VLA sees in `lerobot-eval --env.type=libero --env.observation_height=128
 --env.observation_width=128`: `observation.images.image` (the agentview frame) and `observation.state` (eef xyz,
@@ -42,7 +43,9 @@ import device_train  # noqa: E402
 from device_train import ACTION, EPISODE, assemble  # noqa: E402,F401 - assemble is this script's API too
 
 SUITES = ("libero_spatial", "libero_object")
-CARRY = Path(".device/camera")  # what the GPU machine gets (ignored by git: .git/info/exclude)
+CARRY = Path(".device/camera")
+COMMITTED = Path(__file__).resolve().parent / "checkpoints" / "camera"  # fp16 camera checkpoints the studies run
+COMMIT_MAX_MIB = 30.0  # a committed checkpoint's weights at most  # what the GPU machine gets (ignored by git: .git/info/exclude)
 IMAGE, STATE = "observation.images.image", "observation.state"
 VIDEO_CRF = 10
 # name -> recipe: `policy` (act | diffusion) and its config's fields, then the update. `act` is the recipe of the
@@ -154,6 +157,40 @@ def prepare(dataset: Path, carry: Path, recipes=GPU_RECIPES) -> None:
           f"{mb:.1f} MiB to carry")
 
 
+def commit(ckpt: Path, name: str, root: Path = COMMITTED) -> Path:
+    """Copy a trained checkpoint (a pretrained_model folder) to root/name with its weights in fp16: what a study runs
+    and the repository keeps (at most COMMIT_MAX_MIB). Its recipe.json keeps the trained fp32 weights' sha256 and
+    adds `committed` (dtype, the fp16 file's sha256)."""
+    import hashlib
+
+    import torch
+    from safetensors.torch import load_file, save_file
+
+    weights = ckpt / "model.safetensors"
+    if not weights.exists() or not (ckpt / "recipe.json").exists():
+        raise SystemExit(f"train_camera: {ckpt} holds no model.safetensors and recipe.json; give a checkpoint's "
+                         "pretrained_model folder (outputs/camera_run/<run>/checkpoints/<step>/pretrained_model)")
+    dst = root / name
+    if dst.exists():
+        shutil.rmtree(dst)
+    dst.mkdir(parents=True)
+    for f in ckpt.iterdir():
+        if f.is_file() and f.name not in ("model.safetensors", "recipe.json"):
+            shutil.copy(f, dst / f.name)
+    half = {k: (v.half() if v.is_floating_point() else v).contiguous() for k, v in load_file(str(weights)).items()}
+    save_file(half, str(dst / "model.safetensors"), metadata={"format": "pt"})
+    mib = (dst / "model.safetensors").stat().st_size / 2**20
+    if mib > COMMIT_MAX_MIB:
+        shutil.rmtree(dst)
+        raise SystemExit(f"train_camera: {name}'s fp16 weights are {mib:.1f} MiB, over {COMMIT_MAX_MIB} MiB")
+    recipe = json.loads((ckpt / "recipe.json").read_text())
+    recipe["committed"] = {"name": name, "dtype": str(torch.float16).removeprefix("torch."), "from": str(ckpt),
+                           "model_sha256": hashlib.sha256((dst / "model.safetensors").read_bytes()).hexdigest()}
+    (dst / "recipe.json").write_text(json.dumps(recipe, indent=1))
+    print(f"committed {ckpt} -> {dst}: fp16 weights {mib:.1f} MiB (step {recipe.get('step')})")
+    return dst
+
+
 # ---------------------------------------------------------------- the GPU machine (or here): train
 def decode_video(path: Path) -> np.ndarray:
     """(T, H, W, 3) uint8 RGB frames of an H.264 file (OpenCV)."""
@@ -219,8 +256,13 @@ def main() -> None:
     a = sub.add_parser("assemble", help="here: join what a device run returned into a checkpoint folder")
     a.add_argument("back", help="the folder holding run.json and run.tar.part*")
     a.add_argument("--out", required=True, help="e.g. outputs/train/libero_object/act_camera")
+    c = sub.add_parser("commit", help="here: a trained checkpoint into backbones/checkpoints/camera/<name> in fp16")
+    c.add_argument("checkpoint", help="a pretrained_model folder")
+    c.add_argument("--name", required=True, help="e.g. object_act_camera")
     args = ap.parse_args()
-    if args.cmd == "prepare":
+    if args.cmd == "commit":
+        commit(Path(args.checkpoint), args.name)
+    elif args.cmd == "prepare":
         dataset = Path(args.dataset or f"outputs/datasets/physvla_{args.suite}_agentview128")
         prepare(dataset, Path(args.carry) / args.suite, tuple(args.recipes.split(",")))
     elif args.cmd == "train":

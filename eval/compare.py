@@ -30,7 +30,7 @@ def aggregate(rows: list[dict]) -> dict:
     lo, hi = metrics.wilson_interval(k, n)
     out = {"n": n, "successes": k, "success": k / n if n else float("nan"), "ci": (lo, hi)}
     for m in ("precision", "efficiency", "stability", "mean_jerk", "sparc", "ldlj", "veto_fire_rate", "el_fire_rate",
-              "reward"):
+              "reward", "changed_fraction", "change_norm", "action_norm"):
         out[m] = _finite_mean(r.get(m) for r in rows)
     out["t_total_us"] = float(np.median([r["t_us_p50"]["total"] for r in rows])) if rows and "t_us_p50" in rows[0] \
         else float("nan")

@@ -99,12 +99,24 @@ def _backbone(unit: Unit, scene):
     return _POLICIES[unit.policy]
 
 
+CHANGE_TOL = 1e-6  # action units: a step whose executed action differs from the policy's by more was changed
+
+
+def _finite_mean(vals: list[float]) -> float:
+    vals = [v for v in vals if np.isfinite(v)]
+    return float(np.mean(vals)) if vals else float("nan")
+
+
 def run_episode(scene, corrector, backbone, seed: int, perception=None) -> dict:
     """One episode; returns its record (success, reward, metrics, firing rates, timings).
 
     Success: at the first successful step for scenes that stop on success (LIBERO, MetaWorld, lift_plate),
     else the scene's check at the last step (Lift, Fetch). perception: a sources.perception.Perception
-    between the scene's state and the corrector (the backbone reads the scene's own state)."""
+    between the scene's state and the corrector (the backbone reads the scene's own state).
+
+    How much the corrector did: `changed_fraction` (steps whose executed action differs from the policy's by more
+    than CHANGE_TOL), `change_norm` (the mean over steps of |executed - policy|, action units) beside
+    `action_norm` (the mean |policy action|)."""
     from lerobot_physvla import metrics
 
     scene.reset(seed)
@@ -113,6 +125,7 @@ def run_episode(scene, corrector, backbone, seed: int, perception=None) -> dict:
     if perception is not None:
         perception.reset(seed=seed)
     eef, d_obj, phases, t_a, t_b, t_tot, vetoes, el = [], [], [], [], [], [], 0, 0
+    changed, change_norm, action_norm = 0, [], []  # steps the corrector changed; |out - raw|, |raw| (action units)
     grip = corrector.layout.gripper
     success, steps, reward, first_success = False, 0, 0.0, None
     for steps in range(1, scene.horizon + 1):
@@ -131,6 +144,10 @@ def run_episode(scene, corrector, backbone, seed: int, perception=None) -> dict:
         t_b.append(d.t_branch_b_s)
         t_tot.append(d.t_total_s)
         vetoes += int(grip is not None and d.phase[0] == 0 and out[0, grip] != raw[0, grip])
+        delta = float(np.linalg.norm(out[0] - raw[0])) if np.all(np.isfinite(raw)) else float("nan")
+        changed += int(not delta <= CHANGE_TOL)  # a non-finite action the corrector replaced counts as changed
+        change_norm.append(delta)
+        action_norm.append(float(np.linalg.norm(raw[0])))
         el += int(d.weights[0].sum() > 0)
         if success and scene.stop_on_success:
             break
@@ -146,6 +163,8 @@ def run_episode(scene, corrector, backbone, seed: int, perception=None) -> dict:
         "phase_fraction": [float((ph == p).mean()) for p in range(4)],
         "veto_fire_rate": vetoes / max(int((ph == 0).sum()), 1), "el_fire_rate": el / steps,
         "passthrough": dict(corrector.passthrough_counts),
+        "changed_fraction": changed / steps, "change_norm": _finite_mean(change_norm),
+        "action_norm": _finite_mean(action_norm),
         "t_us_p50": {"a": float(np.median(t_a) * 1e6), "b": float(np.median(t_b) * 1e6), "total": float(np.median(t_tot) * 1e6)},
     }
 

@@ -424,6 +424,31 @@ def section_tasks(study, rows, sec, out) -> list[str]:
     return lines
 
 
+def section_intervention(study, rows, sec, out) -> list[str]:
+    """Whether the policy or the corrector did the task: per cell (`cells`: label -> block names, pooled), backbone
+    and configuration, success against `against` on the same pairs, then how much the corrector did over those
+    episodes: the fraction of steps whose executed action differs from the policy's, and the mean norm of that
+    change beside the mean norm of the policy's action (action units; harness.run_episode)."""
+    against = sec.get("against", "baseline")
+    lines = [f"| cell | backbone / configuration | pairs | {against} | this | paired difference [95 % CI] | "
+             "won / lost | steps changed | mean change | mean action | change / action |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for label, names in sec["cells"].items():
+        blocks = [study.blocks[n] for n in names]
+        for b in _backbones(study, sec, blocks):
+            for c in sec["configs"]:
+                this, base = rows.over(c, b, blocks), rows.over(against, b, blocks)
+                p = cmp.paired(this, base)
+                if not p["n"]:
+                    continue
+                a = cmp.aggregate(this)
+                ratio = a["change_norm"] / a["action_norm"] if a["action_norm"] > 0 else float("nan")
+                lines.append(f"| {label} | {b} / {c} | {p['n']} | {pct(p['base_success'])} | {pct(p['success'])} | "
+                             f"{pp(p)} | {p['won']} / {p['lost']} | {a['changed_fraction']:.1%} | "
+                             f"{a['change_norm']:.3f} | {a['action_norm']:.3f} | {ratio:.2f} |")
+    return lines + [""]
+
+
 def _passthroughs(rs: list[dict]) -> str:
     """The corrector's pass-through reasons summed over episodes (`-` for none)."""
     total = defaultdict(int)
@@ -436,7 +461,7 @@ def _passthroughs(rs: list[dict]) -> str:
 SECTIONS = {"text": section_text, "summary": section_summary, "paired": section_paired,
             "paired_backbones": section_paired_backbones, "sweep": section_sweep, "noise_cells": section_noise_cells,
             "compares": section_compares, "scatter": section_scatter, "provenance": section_provenance,
-            "error_sweep": section_error_sweep, "tasks": section_tasks}
+            "error_sweep": section_error_sweep, "tasks": section_tasks, "intervention": section_intervention}
 
 
 def _rel(study: Study, path: str) -> str:

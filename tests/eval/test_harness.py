@@ -26,6 +26,12 @@ def test_units_run_once_and_resume(tmp_path):
     (rec,) = records
     assert rec["success"] and rec["steps"] < 280  # the clean expert solves task 0, init state 0
     assert 0 < rec["precision"] <= 1 and rec["el_fire_rate"] == 1.0 and rec["t_us_p50"]["total"] > 0
+    # how much the corrector did: phys_el's soft Branch B changes every step a little; baseline changes none
+    assert rec["changed_fraction"] > 0.5 and 0 < rec["change_norm"] < rec["action_norm"]
+    base = Unit("expert_clean", "baseline", PhysVLAConfig.paper(mode="baseline").to_dict(), task_id=0, first_seed=0,
+                episodes=1)
+    (b,), _ = run_units([base], tmp_path, workers=1)
+    assert b["changed_fraction"] == 0.0 and b["change_norm"] == 0.0 and b["action_norm"] > 0
     again, _ = run_units([unit], tmp_path, workers=1)
     assert again == records and path.stat().st_mtime_ns == stamp  # resumed: not re-run
     assert json.loads(path.read_text())["unit"]["backbone"] == "expert_clean"

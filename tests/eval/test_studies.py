@@ -551,3 +551,38 @@ def test_a_study_report_writes_its_own_results_folder_and_nothing_else():
 def test_the_headline_generator_is_what_writes_the_readme_and_the_results_page():
     written = _written_by(["eval/headline.py", "--write"])
     assert written <= {"README.md", "docs/results.md"}, written
+
+
+def test_the_intervention_table_pools_a_cells_blocks_and_says_how_much_the_corrector_changed(tmp_path):
+    """report kind "intervention": per cell (its blocks pooled), success against baseline on the same pairs, and the
+    corrected episodes' fraction of steps changed, mean change and mean action (harness.run_episode's fields)."""
+    f = tmp_path / "t.toml"
+    f.write_text("""title = "t"
+[backbones]
+a = {expert = {}}
+[configs]
+baseline = {preset = "paper", mode = "baseline"}
+c = {preset = "default"}
+[blocks]
+one = {scene = "lift", seeds = [0, 1], backbones = ["a"]}
+two = {scene = "lift_plate", seeds = [0, 1], backbones = ["a"]}
+""")
+    s = Study(f)
+    rows = []
+    for scene in ("lift", "lift_plate"):
+        for seed in (0, 1):
+            rows.append({"backbone": "a", "config": s.config_hash("baseline", scene), "scene": scene, "task_id": 0,
+                         "seed": seed, "success": False, "mean_jerk": 1.0, "changed_fraction": 0.0,
+                         "change_norm": 0.0, "action_norm": 0.5})
+            rows.append({"backbone": "a", "config": s.config_hash("c", scene), "scene": scene, "task_id": 0,
+                         "seed": seed, "success": seed == 0, "mean_jerk": 1.0, "changed_fraction": 0.1 + 0.2 * seed,
+                         "change_norm": 0.01 if scene == "lift" else 0.03, "action_norm": 0.5})
+    sec = {"kind": "intervention", "cells": {"both": ["one", "two"], "only one": ["one"]},
+           "configs": ["baseline", "c"]}
+    lines = report.section_intervention(s, report.Rows(s, rows), sec, tmp_path)
+    table = {tuple(c.strip() for c in ln.strip("|").split("|")[:2]): ln for ln in lines[2:] if ln}
+    both = table[("both", "a / c")].split(" | ")
+    assert both[2:7] == ["4", "0%", "50%", "+50 pp [-7, +107]", "2 / 0"]  # 4 pairs: 2 won
+    assert both[7:10] == ["20.0%", "0.020", "0.500"] and both[10].startswith("0.04")
+    assert table[("only one", "a / c")].split(" | ")[7:9] == ["20.0%", "0.010"]
+    assert table[("both", "a / baseline")].split(" | ")[7:9] == ["0.0%", "0.000"]
