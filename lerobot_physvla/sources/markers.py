@@ -65,6 +65,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numba import njit
 
 from lerobot_physvla.sources.calibration import Calibration
 
@@ -74,6 +75,7 @@ CORNER_NOISE_PX = 0.1  # corner noise floor, px (synthetic frames reproject to ~
 REASONS = ("missing_pose", "wrong_id", "marker_lost", "marker_occluded", "marker_too_small", "marker_edge_on",
            "pose_error_high", "stale_pose", "bad_frame")
 EDGE_SPAN = (0.12, 0.88)  # the stretch of each side whose edge points are fitted (the corners' neighbourhoods left out)
+EDGE_SAMPLES = 21  # grey levels read across a side's edge at each point along it (over 0.9 cell, at most 2.5 px, either way)
 
 
 @dataclass(frozen=True)
@@ -92,6 +94,9 @@ class MarkerConfig:
         corner_noise_px: the corners' noise floor of the error model, px.
         scale_error: the relative uncertainty of the focal length and the printed size (error model), unitless.
         track_steps: frames over which a marker not found where it was seen is `marker_lost` (not missing_pose).
+        threshold_window_px: the detector's adaptive-threshold window, px (odd, >= 3): one pass at this size
+            (cv2's default, three passes at 3, 13 and 23 px, found 1 more marker in 800 synthetic frames at three
+            times the time: eval/bench/markers.py).
     """
 
     marker_size_m: float
@@ -104,6 +109,7 @@ class MarkerConfig:
     corner_noise_px: float = CORNER_NOISE_PX
     scale_error: float = 0.0
     track_steps: int = 30
+    threshold_window_px: int = 7
 
     def __post_init__(self):
         num = lambda v: isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool)  # noqa: E731
@@ -127,6 +133,9 @@ class MarkerConfig:
             v = getattr(self, k)
             if not (int(v) == v >= 0):
                 raise ValueError(f"markers: {k} must be an int >= 0 (control steps), got {v!r}")
+        w = self.threshold_window_px
+        if not (num(w) and int(w) == w >= 3 and int(w) % 2 == 1):
+            raise ValueError(f"markers: threshold_window_px must be an odd number of pixels >= 3, got {w!r}")
 
 
 @dataclass(frozen=True)
@@ -201,12 +210,14 @@ class MarkerDetector:
         self._dict = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, config.dictionary))
         params = cv2.aruco.DetectorParameters()
         params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+        params.adaptiveThreshWinSizeMin = params.adaptiveThreshWinSizeMax = int(config.threshold_window_px)
         self._detector = cv2.aruco.ArucoDetector(self._dict, params)
         self._cells = int(self._dict.markerSize) + 2  # cells across a marker, its black border included
         self._k = calibration.intrinsics.matrix
         self._dist = calibration.intrinsics.dist
         self._obj = object_corners(config.marker_size_m)
         self._f = calibration.intrinsics.focal_px
+        _compile_edge_fit()  # at start, not at the first tick (numba; loaded from its cache after the first run)
 
     @property
     def n_ids(self) -> int:
@@ -262,53 +273,121 @@ class MarkerDetector:
 
 
 def refine_corners(gray: np.ndarray, corners: np.ndarray, cells: int, k: np.ndarray, dist: np.ndarray | None,
-                   step_px: float = 0.25) -> np.ndarray | None:
+                   samples: int = EDGE_SAMPLES) -> np.ndarray | None:
     """A marker's 4 corners (4, 2), undistorted pixels, from lines fitted to its black border's outer edges (module
     doc, step 2); None when a side is too short or too faint to fit. `corners`: the detector's, in the frame;
-    cells: the marker's cells across (its black border included), which bounds the search across each edge."""
-    g = gray if gray.dtype == np.float32 else gray.astype(np.float32)
-    centre = corners.mean(0)
-    sides = np.linalg.norm(np.roll(corners, -1, axis=0) - corners, axis=1)
+    cells: the marker's cells across (its black border included), which bounds the search across each edge;
+    samples: grey levels read across the edge at each point (0.25 px apart on a marker over ~28 px a side)."""
+    corners = np.ascontiguousarray(corners, dtype=np.float64)
+    sides = np.sqrt(((np.roll(corners, -1, axis=0) - corners) ** 2).sum(1))
     if sides.min() < 6.0:
         return None
-    lines = []
-    for i in range(4):
-        # across side i, a cell is about as long as the sides beside it are per cell: search 0.9 cell either way
-        # (inward: never past the black border into the code's cells; outward: within the white margin)
-        half = min(2.5, 0.9 * 0.5 * (sides[i - 1] + sides[(i + 1) % 4]) / cells)
-        offs = np.arange(-half, half + 1e-9, step_px)
-        mid = 0.5 * (offs[:-1] + offs[1:])
-        a, b = corners[i], corners[(i + 1) % 4]
-        tangent = (b - a) / sides[i]
-        normal = np.array([-tangent[1], tangent[0]])
-        if normal @ (0.5 * (a + b) - centre) < 0:
-            normal = -normal  # outward: dark (border) -> light (quiet zone)
-        u = np.linspace(*EDGE_SPAN, int(np.clip(sides[i], 6, 64)))
-        p = a + u[:, None] * (b - a)
-        pts = (p[:, None, :] + offs[None, :, None] * normal).astype(np.float32)
-        prof = cv2.remap(g, pts[..., 0], pts[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        grad = np.clip(np.diff(prof, axis=1), 0.0, None)  # rising outward only: the border's outer edge
-        w = grad.sum(1)
-        keep = w > 0.25 * np.median(w) + 1e-6
-        if keep.sum() < 3:
-            return None
-        edge = p[keep] + ((grad[keep] @ mid) / w[keep])[:, None] * normal
-        if dist is not None:
-            edge = cv2.undistortPoints(edge[:, None].astype(np.float64), k, dist, P=k).reshape(-1, 2)
-        c = edge.mean(0)
-        _, _, vt = np.linalg.svd(edge - c)
-        n = np.array([-vt[0, 1], vt[0, 0]])
-        lines.append((n, float(n @ c)))
-    out = np.empty((4, 2))
-    for i in range(4):  # corner i is where side i-1 meets side i
-        (n1, c1), (n2, c2) = lines[i - 1], lines[i]
-        a = np.array([n1, n2])
-        if abs(np.linalg.det(a)) < 1e-3:
-            return None
-        out[i] = np.linalg.solve(a, [c1, c2])
+    edge, w, starts = _edge_points(np.ascontiguousarray(gray), corners, float(cells), int(samples))
+    if dist is not None:
+        edge = cv2.undistortPoints(edge[:, None], k, dist, P=k).reshape(-1, 2)
+    out = _corners_from_edges(np.ascontiguousarray(edge), w, starts)
+    if out is None:
+        return None
     ref = corners if dist is None else cv2.undistortPoints(corners[:, None], k, dist, P=k).reshape(4, 2)
     if np.abs(out - ref).max() > 3.0:
         return None  # the fit moved a corner by more than the detector's error could be: keep the detector's
+    return out
+
+
+def _compile_edge_fit() -> None:
+    """Compile (or load from numba's cache) the edge fit on a drawn 30-pixel square."""
+    frame = np.full((48, 48), 220, np.uint8)
+    frame[9:39, 9:39] = 20
+    square = np.array([[9.0, 9.0], [39.0, 9.0], [39.0, 39.0], [9.0, 39.0]])
+    refine_corners(frame, square - 0.5, 6, np.eye(3), None)
+
+
+@njit(cache=True)
+def _edge_points(gray, corners, cells, samples):  # pragma: no cover - compiled; tested through refine_corners
+    """Each side's edge points (P, 2), px, their weights (the edge's contrast) and the sides' first indices (5,):
+    along the side's middle EDGE_SPAN, one point per pixel (6-64 a side), the centroid of the rising grey-level
+    gradient across the edge (bilinear reads, `samples` of them over 0.9 cell, at most 2.5 px, either way)."""
+    h, wd = gray.shape
+    cx, cy = corners[:, 0].mean(), corners[:, 1].mean()
+    sides = np.empty(4)
+    for i in range(4):
+        j = (i + 1) % 4
+        sides[i] = math.hypot(corners[j, 0] - corners[i, 0], corners[j, 1] - corners[i, 1])
+    starts = np.zeros(5, np.int64)
+    for i in range(4):
+        starts[i + 1] = starts[i] + min(64, max(6, int(sides[i])))
+    edge = np.empty((starts[4], 2))
+    weight = np.empty(starts[4])
+    prof = np.empty(samples)
+    for i in range(4):
+        j = (i + 1) % 4
+        ax, ay, bx, by = corners[i, 0], corners[i, 1], corners[j, 0], corners[j, 1]
+        tx, ty = (bx - ax) / sides[i], (by - ay) / sides[i]
+        nx, ny = -ty, tx
+        if nx * (0.5 * (ax + bx) - cx) + ny * (0.5 * (ay + by) - cy) < 0:
+            nx, ny = -nx, -ny  # outward: dark (border) -> light (quiet zone)
+        half = min(2.5, 0.9 * 0.5 * (sides[i - 1] + sides[j]) / cells)
+        n = starts[i + 1] - starts[i]
+        for q in range(n):
+            u = EDGE_SPAN[0] + (EDGE_SPAN[1] - EDGE_SPAN[0]) * q / (n - 1)
+            px, py = ax + u * (bx - ax), ay + u * (by - ay)
+            for m in range(samples):
+                o = half * (2.0 * m / (samples - 1) - 1.0)
+                x = min(max(px + o * nx, 0.0), wd - 1.0)  # the frame's edge pixels repeated beyond it
+                y = min(max(py + o * ny, 0.0), h - 1.0)
+                x0, y0 = min(int(x), wd - 2), min(int(y), h - 2)
+                fx, fy = x - x0, y - y0
+                prof[m] = ((1 - fy) * ((1 - fx) * gray[y0, x0] + fx * gray[y0, x0 + 1])
+                           + fy * ((1 - fx) * gray[y0 + 1, x0] + fx * gray[y0 + 1, x0 + 1]))
+            sw, so = 0.0, 0.0
+            for m in range(samples - 1):
+                g = prof[m + 1] - prof[m]
+                if g > 0:  # rising outward only: the border's outer edge
+                    sw += g
+                    so += g * half * ((2.0 * m + 1.0) / (samples - 1) - 1.0)
+            shift = so / sw if sw > 0 else 0.0
+            edge[starts[i] + q, 0] = px + shift * nx
+            edge[starts[i] + q, 1] = py + shift * ny
+            weight[starts[i] + q] = sw
+    return edge, weight, starts
+
+
+@njit(cache=True)
+def _corners_from_edges(edge, weight, starts):  # pragma: no cover - compiled; tested through refine_corners
+    """(4, 2) corners where the sides' fitted lines meet (corner i: side i-1 and side i), or None when a side has
+    under 3 points of contrast (over a quarter of its median) or two sides are parallel. Each line: the total least
+    squares fit (the principal axis) of its side's kept points."""
+    lines = np.empty((4, 3))
+    for i in range(4):
+        ws = weight[starts[i]:starts[i + 1]]
+        thr = 0.25 * np.median(ws) + 1e-6
+        k, sx, sy = 0, 0.0, 0.0
+        for q in range(starts[i], starts[i + 1]):
+            if weight[q] > thr:
+                k += 1
+                sx += edge[q, 0]
+                sy += edge[q, 1]
+        if k < 3:
+            return None
+        mx, my = sx / k, sy / k
+        sxx, syy, sxy = 0.0, 0.0, 0.0
+        for q in range(starts[i], starts[i + 1]):
+            if weight[q] > thr:
+                dx, dy = edge[q, 0] - mx, edge[q, 1] - my
+                sxx += dx * dx
+                syy += dy * dy
+                sxy += dx * dy
+        theta = 0.5 * math.atan2(2.0 * sxy, sxx - syy)
+        lines[i, 0], lines[i, 1] = -math.sin(theta), math.cos(theta)
+        lines[i, 2] = lines[i, 0] * mx + lines[i, 1] * my
+    out = np.empty((4, 2))
+    for i in range(4):
+        a1, b1, c1 = lines[i - 1, 0], lines[i - 1, 1], lines[i - 1, 2]
+        a2, b2, c2 = lines[i, 0], lines[i, 1], lines[i, 2]
+        det = a1 * b2 - a2 * b1
+        if abs(det) < 1e-3:
+            return None
+        out[i, 0], out[i, 1] = (c1 * b2 - c2 * b1) / det, (a1 * c2 - a2 * c1) / det
     return out
 
 
