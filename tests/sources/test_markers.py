@@ -239,3 +239,22 @@ def test_the_compiled_edge_fit_finds_a_drawn_square_s_edges_exactly():
     assert refine_corners(frame, truth[[0, 1, 2, 3]] * 0.1, 6, np.eye(3), None) is None  # sides under 6 px
     flat = np.full((48, 48), 128, np.uint8)  # no edge to fit
     assert refine_corners(flat, truth, 6, np.eye(3), None) is None
+
+
+def test_a_name_with_several_markers_reads_the_best_one_seen_and_moves_it_behind_its_face():
+    """{"object": (3, 5)}: of its markers in view the accepted one with the smallest bound is read (its id in the
+    reading); depth 0.02 m moves the marker's centre 2 cm along its normal, away from the camera (down, here)."""
+    near, far = (0.3, 0.02, 0.03), (0.36, 0.05, 0.0)
+    frame = render_markers(CAM, [MarkerPlacement(3, far), MarkerPlacement(5, near)])
+    src = MarkerSource(CAM, {"object": (3, 5)}, MarkerConfig(0.04), depths={"object": 0.02})
+    got = src.observe(frame)["object"]
+    assert got.reason is None and got.marker_id == 5  # the nearer marker's bound is the smaller
+    assert np.linalg.norm(got.position_m - (np.array(near) - [0.0, 0.0, 0.02])) < 1e-3
+    only_far = src.observe(render_markers(CAM, [MarkerPlacement(3, far)], seed=1))["object"]
+    assert only_far.marker_id == 3 and np.linalg.norm(only_far.position_m - (np.array(far) - [0, 0, 0.02])) < 1e-3
+    lost = src.observe(render_markers(CAM, [], seed=2))["object"]
+    assert lost.reason == "marker_lost" and "3/5" in lost.detail
+    with pytest.raises(ValueError, match="share an id"):
+        MarkerSource(CAM, {"object": (3, 5), "target": 5}, MarkerConfig(0.04))
+    with pytest.raises(ValueError, match="depths for"):
+        MarkerSource(CAM, {"object": 3}, MarkerConfig(0.04), depths={"target": 0.02})
