@@ -180,3 +180,35 @@ def test_prepare_train_assemble_gives_a_policy_the_harness_runs(trained, tmp_pat
     eager, n_eager = run(lazy=False)
     assert (n_lazy, n_eager) == (3, 25)  # one frame a chunk
     np.testing.assert_array_equal(lazy, eager)  # frames the policy does not read change nothing
+
+
+def test_commit_keeps_a_checkpoint_in_fp16_that_acts_as_the_trained_one(trained, tmp_path):
+    """train_camera.commit: the weights in float16 (about half the bytes), the recipe with the trained weights'
+    sha256 and the committed file's, and a policy that acts within 1e-2 action units of the fp32 one."""
+    import hashlib
+    import json
+
+    from safetensors.torch import load_file
+
+    from backbones import LeRobotBackbone
+
+    from lerobot_physvla.sim.scenes import make_scene
+
+    ckpt = train_camera.assemble(trained / "libero_spatial_act", tmp_path / "run")
+    dst = train_camera.commit(ckpt, "act_x", root=tmp_path / "committed")
+    w = load_file(str(dst / "model.safetensors"))
+    assert {str(v.dtype) for v in w.values() if v.is_floating_point()} == {"torch.float16"}
+    assert (dst / "model.safetensors").stat().st_size < 0.6 * (ckpt / "model.safetensors").stat().st_size
+    recipe = json.loads((dst / "recipe.json").read_text())
+    assert recipe["committed"]["model_sha256"] == hashlib.sha256((dst / "model.safetensors").read_bytes()).hexdigest()
+    assert recipe["model_sha256"] == hashlib.sha256((ckpt / "model.safetensors").read_bytes()).hexdigest()
+    scene = make_scene(f"libero_spatial+agentview{SIZE}/0")
+    acts = []
+    for path in (ckpt, dst):
+        policy = LeRobotBackbone(str(path))
+        scene.reset(0)
+        policy.reset(0)
+        acts.append(np.asarray(policy.act(scene, scene.read())))
+    assert np.isfinite(acts[1]).all() and np.abs(acts[0] - acts[1]).max() < 1e-2
+    with pytest.raises(SystemExit, match="no model.safetensors"):
+        train_camera.commit(tmp_path, "nothing", root=tmp_path / "committed")
