@@ -23,6 +23,7 @@ MUJOCO_GL=osmesa), whichever context `import mujoco` chose for its own Renderer.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import tempfile
@@ -224,6 +225,7 @@ class MarkerPoses:
 
     Attributes:
         source: the MarkerSource (its `counts`: (name, reason) per step, "ok" for a current position).
+        last: the last step's readings (name -> MarkerReading).
         seconds: time of each step's detection and pose (s), not the rendering.
     """
 
@@ -237,6 +239,7 @@ class MarkerPoses:
                                                 max_age_steps=max_age_steps),
                                    offsets={"target": c.target_offset_m}, depths={"object": c.object_depth_m})
         self.seconds: list[float] = []
+        self.last: dict = {}
         self._rest_z = math.nan
 
     def reset(self, seed: int | None = None) -> None:
@@ -265,7 +268,7 @@ class MarkerPoses:
         f = field_offsets(n_joints_from_size(out.shape[1]))
         frame = self.frame()
         t0 = time.perf_counter()
-        readings = self.source.observe(frame)
+        readings = self.last = self.source.observe(frame)
         self.seconds.append(time.perf_counter() - t0)
         ages = []
         for name, key in (("object", "obj_pos"), ("target", "target_pos")):
@@ -278,3 +281,52 @@ class MarkerPoses:
         out[0, f["obj_rest_z"]] = self._rest_z
         out[0, f["pose_age"]] = max(ages)
         return out
+
+
+def calibration_frames(scene_xml: str | Path, out: str | Path, config: MarkerRigConfig | None = None) -> Path:
+    """What `lerobot-physvla-calibrate-camera` reads, from the rig: out/intrinsics.json (the camera's, as OpenCV's
+    calibrateCamera would give a real one), and frames of the block's top marker at 12 known base-frame positions
+    (the block set on a grid over the workspace at two heights) with out/points.json. Returns out."""
+    import cv2
+    import mujoco
+
+    rig = MarkerRig(scene_xml, config)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    m, d = rig.model, rig.data
+    adr = m.jnt_qposadr[m.joint("block").id]
+    qpos = np.zeros(m.nq)
+    mujoco.mj_resetData(m, d)
+    qpos[:] = d.qpos
+    points = []
+    grid = [(x, y, z) for z in (0.02, 0.10) for x in (0.15, 0.22, 0.30) for y in (-0.1, 0.1)]
+    try:
+        for k, (x, y, z) in enumerate(grid):
+            qpos[adr:adr + 7] = (x, y, z, 1.0, 0.0, 0.0, 0.0)
+            frame = rig.render(qpos, (x, y - 0.5, 0.0))  # the goal's tile out of the way
+            name = f"frame_{k:02d}.png"
+            cv2.imwrite(str(out / name), frame[:, :, ::-1])
+            points.append({"image": name, "base_xyz": [x, y, z + BLOCK_HALF_M + 2 * TILE_HALF_THICK_M]})
+    finally:
+        rig.close()
+    (out / "points.json").write_text(json.dumps(points, indent=1) + "\n")
+    (out / "intrinsics.json").write_text(json.dumps(rig.calibration.intrinsics.to_dict(), indent=1) + "\n")
+    return out
+
+
+def main(argv=None) -> None:
+    """`python -m lerobot_physvla.sim.marker_scene OUT`: calibration_frames into OUT (the SO-101 pick scene's rig)."""
+    import argparse
+
+    from lerobot_physvla.arms.model import ARMS, resolve_mjcf
+
+    ap = argparse.ArgumentParser(description="the simulated SO-101 rig's frames for lerobot-physvla-calibrate-camera")
+    ap.add_argument("out", help="folder for intrinsics.json, points.json and the frames")
+    a = ap.parse_args(argv)
+    out = calibration_frames(resolve_mjcf(ARMS["so101"].mjcf).parent / "pick_scene.xml", a.out)
+    print(f"wrote {out}/intrinsics.json, {out}/points.json and 12 frames of marker "
+          f"{MarkerRigConfig().object_markers[0]} ({MarkerRigConfig().marker_size_m} m)")
+
+
+if __name__ == "__main__":
+    main()

@@ -183,3 +183,33 @@ def test_lerobot_rollout_s_flags_build_the_marker_step_and_a_bad_file_stops_it(c
         activate_rollout(["lerobot-rollout", *flags, f"--physvla.calibration={tmp_path / 'bad.json'}"])
     err = capsys.readouterr().err.strip()
     assert e.value.code == 2 and "intrinsics lacks fy, cx, cy, image_size" in err and "\n" not in err
+
+
+def test_the_simulated_so101_s_rendered_camera_goes_through_the_step(tmp_path):
+    """physvla_sim_so101 with marker_camera: the step reads the rendered frame (calibrated from the rig's own frames
+    by the calibration helper), finds the block 0.3 m from the gripper and the goal, and vetoes the close."""
+    from lerobot_physvla.robots.physvla_sim_so101 import SimSO101, SimSO101Config
+    from lerobot_physvla.scripts.lerobot_physvla_calibrate_camera import main as calibrate
+    from lerobot_physvla.sim.marker_scene import calibration_frames
+
+    frames = calibration_frames(SimSO101.scene_xml(), tmp_path / "calib")
+    calibrate(["--intrinsics", str(frames / "intrinsics.json"), "--points", str(frames / "points.json"),
+               "--marker-id", "3", "--marker-size-m", "0.03", "--out", str(tmp_path / "camera.json")])
+    block, goal = [0.2, 0.12, 0.02], [0.22, -0.12, 0.02]
+    robot = SimSO101(SimSO101Config(fps=10, block_xyz=block, marker_camera=True, goal_xyz=goal))
+    robot.connect()
+    try:
+        s = PhysVLARobotActionStep(arm="so101", pose_source="markers", camera="marker_cam", object_marker=3,
+                                   target_marker=7, marker_size_m=0.03, calibration=str(tmp_path / "camera.json"),
+                                   object_marker_offset=[0.0, 0.0, -0.021], target_marker_offset=[-0.05, 0.0, 0.019])
+        o = robot.get_observation()
+        assert o["marker_cam"].shape == (480, 640, 3)
+        out = pipeline(s)((act(gripper=0.0), o))
+        readings = s.markers.observe(robot.get_observation())
+    finally:
+        robot.disconnect()
+    assert out["gripper.pos"] == 100.0 and not s.pose_counts  # both positions read; the far close held open
+    np.testing.assert_allclose(readings["object"].position_m, block, atol=0.002)
+    np.testing.assert_allclose(readings["target"].position_m, goal, atol=0.002)
+    with pytest.raises(ValueError, match="goal_xyz"):
+        SimSO101(SimSO101Config(marker_camera=True))
