@@ -131,8 +131,10 @@ class PhysVLAStateExport(StateExport):
         return self.env.render() if self.cameras else _BLANK_FRAME
 
 
-def _wrapped(make_env, cameras: bool, perception: PerceptionConfig | None = None):
-    return PhysVLAStateExport(make_env(), cameras=cameras, perception=perception)
+def _wrapped(make_env, cameras: bool, perception: PerceptionConfig | None = None, first_init_state: int = 0):
+    env = make_env()
+    env.init_state_id += first_init_state  # lerobot's order (sub-env i, episode k: i + k * n_envs), shifted
+    return PhysVLAStateExport(env, cameras=cameras, perception=perception)
 
 
 @EnvConfig.register_subclass("libero_physvla")
@@ -147,9 +149,12 @@ class LiberoPhysVLAEnvConfig(LiberoEnvConfig):
             object's and the target's poses in physvla_state (sources/perception.py PoseFaults: a bias of
             this length per episode (m), noise sigma per axis (m), lag (control steps), the fraction of
             steps missing); all 0: exact. The policy's observation is never touched.
+        first_init_state: the init state sub-env 0's first episode starts from (lerobot's order shifted: sub-env i,
+            episode k starts from first_init_state + i + k * n_envs, modulo the task's init states); 0 as `libero`.
     """
 
     cameras: bool = True
+    first_init_state: int = 0
     pose_bias_m: float = 0.0
     pose_noise_m: float = 0.0
     pose_lag_steps: int = 0
@@ -162,6 +167,9 @@ class LiberoPhysVLAEnvConfig(LiberoEnvConfig):
     def __post_init__(self):
         super().__post_init__()
         self.perception  # noqa: B018 - a fault out of range is a clear ValueError now, not in a worker
+        if not (isinstance(self.first_init_state, int) and self.first_init_state >= 0):
+            raise ValueError(f"libero_physvla: first_init_state must be an init state index >= 0, got "
+                             f"{self.first_init_state!r}")
         if not self.cameras:
             for key in list(self.features):
                 if self.features[key].type == FeatureType.VISUAL:
@@ -179,7 +187,8 @@ class LiberoPhysVLAEnvConfig(LiberoEnvConfig):
             raise ValueError("libero_physvla requires --env.task (e.g. libero_spatial)")
         # LIBERO-PRO's suites (envs/libero_pro.py) resolve here too; the state export wraps every sub-env
         with (compat.extra_libero_suites(libero_pro.resolve, libero_pro.make_env_fns),
-              compat.wrapped_libero_env_factories(partial(_wrapped, cameras=self.cameras, perception=self.perception))):
+              compat.wrapped_libero_env_factories(partial(_wrapped, cameras=self.cameras, perception=self.perception,
+                                                          first_init_state=self.first_init_state))):
             return create_libero_envs(
                 task=self.task, n_envs=n_envs, camera_name=self.camera_name, init_states=self.init_states,
                 gym_kwargs=self.gym_kwargs, env_cls=compat.vector_env_class(use_async_envs, n_envs),

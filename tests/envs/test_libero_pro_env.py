@@ -78,3 +78,25 @@ def test_async_workers_register_the_replacement_objects_themselves():
         assert vec.call("_max_episode_steps") == (280, 280)
     finally:
         vec.close()
+
+
+@pytest.mark.slow
+def test_first_init_state_starts_lerobot_s_order_where_a_study_s_block_starts():
+    """--env.first_init_state=30: sub-env 0's first episode is init state 30, the scene the harness runs as seed 30
+    (the same object), the second 31 (n_envs 1); a negative start is refused."""
+    from lerobot_physvla.sim.scenes import make_scene
+
+    cfg = LiberoPhysVLAEnvConfig(task="libero_object", task_ids=[1], cameras=False, first_init_state=30)
+    vec = cfg.create_envs(1)["libero_object"][1]
+    try:
+        for seed in (30, 31):
+            obs, _ = vec.reset(seed=[seed])
+            scene = make_scene("libero_object/1")
+            scene.reset(seed)
+            np.testing.assert_allclose(PhysState.unpack(obs["robot_state"][STATE]).obj_pos[0], scene.read().obj_pos[0],
+                                       atol=1e-6)
+            scene.env.close()
+    finally:
+        vec.close()
+    with pytest.raises(ValueError, match="first_init_state"):
+        LiberoPhysVLAEnvConfig(task="libero_object", first_init_state=-1)
