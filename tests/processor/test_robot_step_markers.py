@@ -176,7 +176,7 @@ def test_lerobot_rollout_s_flags_build_the_marker_step_and_a_bad_file_stops_it(c
     activate_rollout(argv)
     assert argv == ["lerobot-rollout", "--robot.type=so101_follower", "--fps=30"]
     s = restore_rollout.build_rollout_context.step
-    assert s.markers.markers == {"object": 3} and s.object_marker_offset == [0.0, 0.0, -0.02]
+    assert s.markers.markers == {"object": (3,)} and s.object_marker_offset == [0.0, 0.0, -0.02]
     capsys.readouterr()
     (tmp_path / "bad.json").write_text(json.dumps({"intrinsics": {"fx": 600}, "camera_to_base": np.eye(4).tolist()}))
     with pytest.raises(SystemExit) as e:
