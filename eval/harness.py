@@ -107,7 +107,7 @@ def _finite_mean(vals: list[float]) -> float:
     return float(np.mean(vals)) if vals else float("nan")
 
 
-def run_episode(scene, corrector, backbone, seed: int, perception=None) -> dict:
+def run_episode(scene, corrector, backbone, seed: int, perception=None, on_step=None) -> dict:
     """One episode; returns its record (success, reward, metrics, firing rates, timings).
 
     Success: at the first successful step for scenes that stop on success (LIBERO, MetaWorld, lift_plate),
@@ -116,7 +116,10 @@ def run_episode(scene, corrector, backbone, seed: int, perception=None) -> dict:
 
     How much the corrector did: `changed_fraction` (steps whose executed action differs from the policy's by more
     than CHANGE_TOL), `change_norm` (the mean over steps of |executed - policy|, action units) beside
-    `action_norm` (the mean |policy action|)."""
+    `action_norm` (the mean |policy action|).
+
+    on_step(step, state, raw, out, diagnostics): called after each step's correction, before the scene steps
+    (eval/trace_episode.py prints an episode from it); raw and out are (1, A) action units."""
     from lerobot_physvla import metrics
 
     scene.reset(seed)
@@ -133,6 +136,8 @@ def run_episode(scene, corrector, backbone, seed: int, perception=None) -> dict:
         raw = np.asarray(backbone.act(scene, st), dtype=np.float64)[None]
         out = corrector(raw, st) if perception is None else corrector.correct_packed(raw, perception.apply(st.pack()))
         d = corrector.last
+        if on_step is not None:
+            on_step(steps, st, raw, out, d)
         success, r = scene.step(out[0])
         reward += r
         if success and first_success is None:
