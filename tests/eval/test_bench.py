@@ -59,3 +59,50 @@ def test_failure_modes_sorts_an_episode_by_what_its_object_did():
     obj = np.concatenate([first, _path((0.5, 0.5, 0.9), (0.5, 0.5, 0.9))])
     hand = np.concatenate([first, _path((0.3, 0, 0.95), (0.3, 0, 0.95))])
     assert fm.outcome(False, _trace(hand, obj, tgt)) == "never reached"
+
+
+def test_the_steer_probe_pulls_a_settled_low_hand_toward_the_object_and_refuses_the_studys_blocks():
+    """eval/bench/steer_probe.py: the probe's pull (its module doc) on top of the default's action."""
+    from types import SimpleNamespace
+
+    import pytest
+
+    import steer_probe
+
+    from lerobot_physvla.core.config import LIBERO_OSC_POSE as lay  # 7-D, gripper 6, 0.05 m per unit
+
+    class Inner:
+        layout = lay
+        passthrough_counts: dict = {}
+
+        def __init__(self):
+            self.last = SimpleNamespace(phase=np.array([0]), lift=np.array([0.0]))
+
+        def __call__(self, raw, st):
+            return np.clip(raw, -1, 1)
+
+        def reset(self):
+            pass
+
+    def state(eef, obj=(0.0, 0.0, 0.0)):
+        return SimpleNamespace(eef_pos=np.array([eef], float), obj_pos=np.array([obj], float))
+
+    def run(eef_path, grip=-1.0):
+        c = steer_probe.SteeredCorrector(Inner())
+        c.reset()
+        raw = np.zeros((1, 7))
+        raw[0, 6] = grip
+        out = [c(raw, state(e)) for e in eef_path]
+        return out[-1][0], c.pulled
+
+    low_far = [(0.2, 0.0, 0.05)] * 6  # 20 cm from the object, 5 cm above it: settled at the sixth step
+    out, pulled = run(low_far)
+    assert pulled == 1 and out[0] == -1.0 and out[1] == 0.0  # full pull toward -x (20 cm > one unit's 5 cm)
+    assert run([(0.2, 0.0, 0.30)] * 7)[1] == 0  # hovering high: left alone
+    assert run([(0.2 - 0.02 * k, 0.0, 0.05) for k in range(7)])[1] == 0  # still moving, never settled: left alone
+    assert run([(0.02, 0.01, 0.05)] * 7, grip=1.0)[1] == 0  # closing at the object: left to the policy
+    assert run(low_far, grip=1.0)[1] == 1  # closing far from it (the veto holds it open there): pulled
+    with pytest.raises(SystemExit, match="held out or confirmation"):
+        steer_probe.main(["--suite", "libero_object_swap", "--init", "5-6"])
+    with pytest.raises(SystemExit, match="held out or confirmation"):
+        steer_probe.main(["--suite", "libero_object", "--init", "42"])
