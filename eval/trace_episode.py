@@ -5,7 +5,7 @@
 
 The episode runs as eval/harness.py runs the study's unit (the block's scene, the backbone's policy, the
 configuration as the study resolves it on that scene). Printed every `--every` control steps, and at every step
-where the executed gripper command differs from the policy's or the phase changes:
+where the corrector changed the policy's action beyond clipping it, or the phase changed:
 
     step  phase  d_xy  h  lift   the corrector's phase; the hand's horizontal distance from the object and its height
                                  above the object's origin, the object's lift (cm)
@@ -107,8 +107,7 @@ class Printer:
         phase = int(d.phase[0])
         raw, out = raw[0], out[0]
         why = self.why(raw, out, int(d.status[0]))
-        gripper_moved = self.grip is not None and "gripper" in why
-        if step % self.every and phase == self.last_phase and not gripper_moved:
+        if step % self.every and phase == self.last_phase and why in ("", "clip"):
             return
         self.last_phase = phase
         h = (st.eef_pos[0, 2] - st.obj_pos[0, 2]) * CM
