@@ -207,10 +207,10 @@ FAMILIES: tuple[tuple[str, tuple, str], ...] = (
      (("learned_so101_b128", "shipped default now", ("so101",), ()),), ""),
     ("Camera ACTs (64 px, no object positions), LIBERO-Object",
      (("camera_libero_pro", "shipped default", ("original",), ()),), ""),
-    ("The same, LIBERO-PRO position shifts",
-     (("camera_libero_pro", "shipped default", ("swap", "temp_x", "temp_y"), ()),), ""),
-    ("The same, LIBERO-PRO distractors, new objects",
-     (("camera_libero_pro", "shipped default", ("with_mug", "with_book", "replaced"), ()),), ""),
+    ("Same, LIBERO-PRO swap, x-shift",
+     (("camera_libero_pro", "shipped default", ("swap", "temp_x"), ()),), ""),
+    ("Same, LIBERO-PRO mug, new objects",
+     (("camera_libero_pro", "shipped default", ("with_mug", "replaced"), ()),), ""),
 )
 MARKS = "†‡§¶"
 
