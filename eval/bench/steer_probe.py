@@ -32,6 +32,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "eval"))
+sys.path.insert(0, str(ROOT / "eval" / "bench"))
+from shape_expert_probe import parse_range  # noqa: E402
 
 REACH_M = 0.40  # the pull's zone: the hand within this of the object horizontally, metres
 HOVER_M = 0.12  # ... and under this above the object's origin, metres
@@ -82,14 +84,6 @@ class SteeredCorrector:
                 out[0, k] = np.clip((obj[c] - eef[c]) / lay.metres_per_unit, lay.low, lay.high)
             self.pulled += 1
         return out
-
-
-def parse_range(text: str) -> list[int]:
-    out: list[int] = []
-    for part in text.split(","):
-        a, _, b = part.partition("-")
-        out += list(range(int(a), int(b) + 1)) if b else [int(a)]
-    return out
 
 
 def main(argv=None) -> int:
