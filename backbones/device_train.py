@@ -288,19 +288,45 @@ def train(carry: Path, out: Path, device: str, steps: int | None, max_minutes: f
             break
     secs = time.time() - t_train
     out.mkdir(parents=True, exist_ok=True)
+    back = returned_steps(recipe, saved, done)
+    if recipe.get("return_dtype") == "float16":
+        for s in back:
+            ckpt = ckpts / f"{s:06d}" / "pretrained_model"
+            meta = json.loads((ckpt / "recipe.json").read_text())
+            meta["returned"] = {"dtype": "float16", "model_sha256": half_safetensors(ckpt / "model.safetensors")}
+            (ckpt / "recipe.json").write_text(json.dumps(meta, indent=1))
     with tarfile.open(out / "run.tar", "w") as t:
-        for s in saved:
+        for s in back:
             t.add(ckpts / f"{s:06d}", arcname=f"{s:06d}")
     blob = (out / "run.tar").read_bytes()
     (out / "run.tar").unlink()
     shutil.rmtree(ckpts)
     for i in range(0, len(blob), PART_BYTES):
         (out / f"run.tar.part{i // PART_BYTES:02d}").write_bytes(blob[i:i + PART_BYTES])
-    (out / "run.json").write_text(json.dumps({"recipe": recipe, "steps_done": done, "saved": saved,
+    (out / "run.json").write_text(json.dumps({"recipe": recipe, "steps_done": done, "saved": back, "saved_there": saved,
                                               "train_seconds": secs, "device": name,
                                               "tar_sha256": hashlib.sha256(blob).hexdigest()}, indent=1))
-    print(f"trained {done} steps in {secs / 60:.1f} min on {name}; checkpoints {saved}; "
+    print(f"trained {done} steps in {secs / 60:.1f} min on {name}; checkpoints {saved}, returning {back}; "
           f"{len(blob) / 2**20:.1f} MiB in {-(-len(blob) // PART_BYTES)} parts -> {out}")
+
+
+def returned_steps(recipe: dict, saved: list[int], done: int) -> list[int]:
+    """The saved checkpoints a run hands back: all of them, or the recipe's `return_steps` (step numbers, "last" for
+    the step the run stopped at) where only some fit what the device tool returns (64 MiB a call)."""
+    want = recipe.get("return_steps")
+    if not want:
+        return list(saved)
+    steps = {done if w == "last" else int(w) for w in want}
+    return [s for s in saved if s in steps]
+
+
+def half_safetensors(src: Path, dst: Path | None = None) -> str:
+    """Write `src`'s weights with every floating tensor in fp16 to `dst` (default: over `src`); the file's sha256."""
+    from safetensors.torch import load_file, save_file
+
+    half = {k: (v.half() if v.is_floating_point() else v).contiguous() for k, v in load_file(str(src)).items()}
+    save_file(half, str(dst or src), metadata={"format": "pt"})
+    return hashlib.sha256(Path(dst or src).read_bytes()).hexdigest()
 
 
 def add_train_parser(sub, help: str, carry: str | None, out: str, max_minutes: float, name: str = "train"):

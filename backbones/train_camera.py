@@ -65,10 +65,18 @@ RECIPES: dict[str, dict] = {
                   "num_inference_steps": 10,
                   "batch_size": 64, "steps": 10000, "save_every": 2000, "seed": 1000},
 }
+# diffusion64: `diffusion` on 64-pixel frames, its random crop scaled with the frame (56 of 64, as 112 of 128).
+RECIPES["diffusion64"] = {**RECIPES["diffusion"], "crop_shape": (56, 56)}
+# What a lent GPU hands back: the device tool returns 64 MiB a call and a camera checkpoint is ~30 MiB in fp16, so a
+# GPU run returns two checkpoints in fp16 (the cast `commit` makes), fixed before it trains: its last (the strong
+# policy) and step 2,000 (its weaker sibling, the first save, as the state ACTs' `_weak` siblings).
+for _name in ("act", "diffusion", "diffusion64"):
+    RECIPES[_name].update(return_steps=[2000, "last"], return_dtype="float16")
 # act_cpu: `act` as this 2-core CPU can train it when no GPU is lent (on 64-pixel frames: 0.44 s a step at batch 32
 # here, against 3.4 s at 128 pixels and batch 64): batch 32, 5,000 steps (~40 min), a checkpoint every 1,000.
-RECIPES["act_cpu"] = {**RECIPES["act"], "batch_size": 32, "steps": 5000, "save_every": 1000}
-UPDATE = ("policy", "batch_size", "steps", "save_every", "seed")  # the recipe keys that are not the config's
+RECIPES["act_cpu"] = {**RECIPES["act"], "batch_size": 32, "steps": 5000, "save_every": 1000,
+                      "return_steps": None, "return_dtype": None}
+UPDATE = ("policy", "batch_size", "steps", "save_every", "seed", "return_steps", "return_dtype")  # not config fields
 GPU_RECIPES = ("act", "diffusion")  # what `prepare` readies for a lent GPU unless told otherwise
 
 
@@ -161,10 +169,7 @@ def commit(ckpt: Path, name: str, root: Path = COMMITTED) -> Path:
     """Copy a trained checkpoint (a pretrained_model folder) to root/name with its weights in fp16: what a study runs
     and the repository keeps (at most COMMIT_MAX_MIB). Its recipe.json keeps the trained fp32 weights' sha256 and
     adds `committed` (dtype, the fp16 file's sha256)."""
-    import hashlib
-
     import torch
-    from safetensors.torch import load_file, save_file
 
     weights = ckpt / "model.safetensors"
     if not weights.exists() or not (ckpt / "recipe.json").exists():
@@ -177,15 +182,14 @@ def commit(ckpt: Path, name: str, root: Path = COMMITTED) -> Path:
     for f in ckpt.iterdir():
         if f.is_file() and f.name not in ("model.safetensors", "recipe.json"):
             shutil.copy(f, dst / f.name)
-    half = {k: (v.half() if v.is_floating_point() else v).contiguous() for k, v in load_file(str(weights)).items()}
-    save_file(half, str(dst / "model.safetensors"), metadata={"format": "pt"})
+    sha = device_train.half_safetensors(weights, dst / "model.safetensors")
     mib = (dst / "model.safetensors").stat().st_size / 2**20
     if mib > COMMIT_MAX_MIB:
         shutil.rmtree(dst)
         raise SystemExit(f"train_camera: {name}'s fp16 weights are {mib:.1f} MiB, over {COMMIT_MAX_MIB} MiB")
     recipe = json.loads((ckpt / "recipe.json").read_text())
     recipe["committed"] = {"name": name, "dtype": str(torch.float16).removeprefix("torch."), "from": str(ckpt),
-                           "model_sha256": hashlib.sha256((dst / "model.safetensors").read_bytes()).hexdigest()}
+                           "model_sha256": sha}
     (dst / "recipe.json").write_text(json.dumps(recipe, indent=1))
     print(f"committed {ckpt} -> {dst}: fp16 weights {mib:.1f} MiB (step {recipe.get('step')})")
     return dst

@@ -40,6 +40,26 @@ def test_act_chunk_long_is_act_chunks_policy():
     assert device_train.STATE_RECIPES["act_chunk_b128"]["policy"] == device_train.STATE_RECIPES["act_chunk_long"]["policy"]
 
 
+def test_a_run_returns_the_recipes_return_steps_only():
+    """What fits the device tool's 64 MiB: the recipe's return_steps ("last": where the run stopped), else all."""
+    saved = [2000, 4000, 6000, 7300]
+    assert device_train.returned_steps({"return_steps": [2000, "last"]}, saved, 7300) == [2000, 7300]
+    assert device_train.returned_steps({"return_steps": [2000, "last"]}, [2], 2) == [2]  # a run stopped before 2000
+    assert device_train.returned_steps({}, saved, 7300) == saved
+
+
+def test_half_safetensors_casts_floats_and_keeps_integers(tmp_path):
+    import torch
+    from safetensors.torch import load_file, save_file
+
+    save_file({"w": torch.randn(3, 2), "n": torch.tensor([5], dtype=torch.int64)}, str(tmp_path / "m.safetensors"))
+    sha = device_train.half_safetensors(tmp_path / "m.safetensors", tmp_path / "h.safetensors")
+    h = load_file(str(tmp_path / "h.safetensors"))
+    assert h["w"].dtype == torch.float16 and h["n"].dtype == torch.int64 and h["n"].item() == 5
+    assert sha == __import__("hashlib").sha256((tmp_path / "h.safetensors").read_bytes()).hexdigest()
+    assert device_train.half_safetensors(tmp_path / "h.safetensors", tmp_path / "h2.safetensors") == sha  # idempotent
+
+
 def test_chunk_index_clamps_and_pads_at_episode_ends():
     idx, pad = device_train.chunk_index(np.array([0, 0, 0, 1, 1]), 3)
     np.testing.assert_array_equal(idx, [[0, 1, 2], [1, 2, 2], [2, 2, 2], [3, 4, 4], [4, 4, 4]])
