@@ -184,6 +184,7 @@ def import_lerobot():
         sys.modules.setdefault("lerobot.policies", pkg)
     from lerobot.configs.policies import PreTrainedConfig
     from lerobot.policies.act.modeling_act import ACTPolicy
+    from lerobot.policies.diffusion import configuration_diffusion  # noqa: F401 - registers the `diffusion` type
     from lerobot.processor import PolicyProcessorPipeline
 
     return ACTPolicy, PreTrainedConfig, PolicyProcessorPipeline
