@@ -1,0 +1,111 @@
+"""The approach pull (core/corrections/approach_pull.py): a close commanded approach_pull_m or farther from the object
+takes the hand there (rise, cross, descend, close, lift) and carries the object over the target; a close nearer than
+that, a pose error of 1 cm or more, and every preset are left as they were."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from lerobot_physvla.core.config import PRESETS, PhysVLAConfig
+from lerobot_physvla.core.corrections.approach_pull import CARRY_M, CLEAR_M, CLOSE_STEPS, GRASP_H_M, NEAR_M
+from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.core.phase import Phase
+from lerobot_physvla.core.state import PhysState
+
+SCALE = 0.05  # LIBERO's OSC: metres of hand travel per action unit
+REST_Z = 0.9
+# the carry acts in the transport phase, which the shipped default gives no authority: the pull's configuration gives
+# it full authority there, with the paper's transport smoothing made the identity (no EMA, no lift bias)
+ON = PRESETS["default"].replace(approach_pull_m=0.10, phase_caps=(1.0, 1.0, 1.0, 1.0), alpha_transport=0.0,
+                                lift_bias_m=0.0)
+OFF = ON.replace(approach_pull_m=0.0)
+TARGET = (0.3, 0.3, REST_Z)
+
+
+def _state(t, eef, obj):
+    s = PhysState.empty(1, 7)
+    s.valid[:], s.dt[:], s.episode_step[:] = 1.0, 0.05, t
+    s.obj_pos[:], s.target_pos[:], s.obj_rest_z[:] = obj, TARGET, REST_Z
+    s.eef_pos[:], s.gripper[:] = eef, 0.08
+    s.M[:], s.J_pos[:, :, :3] = np.eye(7), np.eye(3)
+    return s
+
+
+def _run(cfg, start_xy, steps=140, grip=1.0, follow=True):
+    """A policy that keeps closing (gripper +1) and pushing down where it is, a hand that moves SCALE m per action
+    unit, an object at the origin that moves with a closed hand once the pull lifts it (follow); (actions, phases,
+    hand positions relative to the object)."""
+    c = Corrector(cfg, batch_size=1)
+    eef, obj = np.array([*start_xy, REST_Z]), np.array([0.0, 0.0, REST_Z])
+    outs, phases, hands, objs = [], [], [], []
+    for t in range(steps):
+        a = np.array([[0.02, 0.0, -0.1, 0, 0, 0, grip]])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out = c(a, _state(t, eef, obj))[0]
+        outs.append(out)
+        phases.append(int(c.last.phase[0]))
+        hands.append(eef - obj)
+        objs.append(obj.copy())
+        held = follow and out[6] > 0 and np.linalg.norm((eef - obj)[:2]) < 0.02 and (out[2] > 0 or obj[2] > REST_Z)
+        eef = eef + out[:3] * SCALE
+        if held:
+            obj = obj + out[:3] * SCALE
+    return np.array(outs), phases, np.array(hands), np.array(objs)
+
+
+def test_a_far_close_takes_the_hand_up_over_the_object_down_closes_and_lifts_it():
+    outs, phases, hands, objs = _run(ON, (0.2, 0.0), steps=200)
+    assert outs[0][2] > 0 and outs[0][0] == 0 and outs[0][6] == -1.0  # rise first, open, no sideways move low
+    top = hands[:, 2].max()
+    assert CLEAR_M - 0.02 <= top <= CLEAR_M + 0.02  # it crosses at the travel height
+    closed = [k for k, o in enumerate(outs) if o[6] > 0]
+    assert closed, "the pulled hand never closed"
+    k = closed[0]
+    crossing = [j for j in range(k) if 0.05 < hands[j][0] < 0.15]
+    assert crossing and all(hands[j][2] > CLEAR_M - 0.03 for j in crossing)
+    assert np.linalg.norm(hands[k][:2]) <= NEAR_M and hands[k][2] <= GRASP_H_M + 0.01
+    assert all(outs[j][2] == 0 for j in range(k, k + CLOSE_STEPS))  # held still while the fingers close
+    assert outs[k + CLOSE_STEPS][2] > 0  # then the lift
+    assert Phase.TRANSPORT in phases and Phase.PLACE in phases  # lifted, then carried over the target
+    carry = [j for j, ph in enumerate(phases) if ph == Phase.TRANSPORT]
+    assert all(outs[j][6] == 1.0 for j in carry)  # held closed while carried
+    place = phases.index(Phase.PLACE)
+    assert np.linalg.norm(objs[place][:2] - TARGET[:2]) < ON.delta_grasp_m  # the object over the target
+    assert abs(objs[place][2] + hands[place][2] - (TARGET[2] + CARRY_M)) < 0.03  # the hand at the carry height
+    assert outs[place + 1][2] < 0  # then the pull has let go: the policy's own descent, where the carry held height
+
+
+def test_a_close_nearer_than_approach_pull_m_is_the_shipped_defaults_business():
+    for xy in ((-0.08, 0.0), (0.0, -0.09), (0.03, 0.03)):  # the policy moves +1 mm a step in x: toward, across
+        on, *_ = _run(ON, xy, steps=30, follow=False)
+        off, *_ = _run(OFF, xy, steps=30, follow=False)
+        np.testing.assert_array_equal(on, off)
+
+
+def test_no_pull_with_a_pose_error_of_a_centimetre_or_more_nor_for_an_open_policy():
+    told = ON.replace(pose_error_m=NEAR_M)
+    for cfg, grip in ((told, 1.0), (ON, -1.0)):
+        pulled, *_ = _run(cfg, (0.2, 0.0), steps=30, grip=grip, follow=False)
+        plain, *_ = _run(OFF.replace(pose_error_m=cfg.pose_error_m), (0.2, 0.0), steps=30, grip=grip,
+                           follow=False)
+        np.testing.assert_array_equal(pulled, plain)
+
+
+def test_a_missed_grasp_goes_round_again():
+    outs, phases, _, _ = _run(ON, (0.2, 0.0), steps=160, follow=False)
+    assert Phase.TRANSPORT not in phases
+    closes = [k for k in range(1, len(outs)) if outs[k][6] > 0 and outs[k - 1][6] < 0]
+    assert len(closes) >= 2  # closed, lifted nothing for LIFT_STEPS, came back down and closed again
+
+
+def test_off_in_every_preset_and_in_a_file_saved_before_it_and_checked():
+    assert all(p.approach_pull_m == 0.0 for p in PRESETS.values())
+    assert PhysVLAConfig.from_dict({"version": 1, "cap": 0.05}).approach_pull_m == 0.0
+    with pytest.raises(ValueError, match="approach_pull_m"):
+        PhysVLAConfig(approach_pull_m=-0.1)
+    with pytest.raises(ValueError, match="approach_pull_m"):
+        PhysVLAConfig(approach_pull_m=0.1, phase_caps=(1.0, 0.0, 0.0, 1.0))
