@@ -12,9 +12,9 @@ the hand to the object and the object over the target:
               object (rho = |p_eef - p_obj|_xy, m); held until the place phase, or until the object, once lifted,
               is back at rest (dropped)
     then, with h = p_eef_z - p_obj_z (m), k = the layout's step_gain, every command in action units clipped to [-1, 1]:
-      rise     rho > NEAR_M and h < CLEAR_M - SLACK_M:   a_xy = 0, a_z = k (CLEAR_M - h) / scale
-      cross    rho > NEAR_M:                             a_xy = k (p_obj - p_eef)_xy / scale, a_z = k (CLEAR_M - h) / scale
-      descend  rho <= NEAR_M:                            a_xy as cross, a_z = k (GRASP_H_M - h) / scale
+      rise     rho > 3 NEAR_M and h < CLEAR_M - SLACK_M: a_xy = 0, a_z = k (CLEAR_M - h) / scale
+      cross    rho > 3 NEAR_M:                           a_xy = k (p_obj - p_eef)_xy / scale, a_z = k (CLEAR_M - h) / scale
+      descend  rho <= 3 NEAR_M:                          a_xy as cross, a_z = k (GRASP_H_M - h) / scale
       (the gripper open in all three)
       close    at GRASP_H_M: CLOSE_STEPS steps of a_xy, a_z = 0, the gripper closed
       lift     then a_xy = 0, a_z = LIFT_U, the gripper closed, until the object is lifted past h_lift (after
