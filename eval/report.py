@@ -428,7 +428,9 @@ def section_intervention(study, rows, sec, out) -> list[str]:
     """Whether the policy or the corrector did the task: per cell (`cells`: label -> block names, pooled), backbone
     and configuration, success against `against` on the same pairs, then how much the corrector did over those
     episodes: the fraction of steps whose executed action differs from the policy's, and the mean norm of that
-    change beside the mean norm of the policy's action (action units; harness.run_episode)."""
+    change beside the mean norm of the policy's action (action units; harness.run_episode). A cell that ran no
+    `against` episodes (a design block of candidate against reference) is paired against the first of `configs`
+    that it ran, and its rows say so ("(against X)")."""
     against = sec.get("against", "baseline")
     lines = [f"| cell | backbone / configuration | pairs | {against} | this | paired difference [95 % CI] | "
              "won / lost | steps changed | mean change | mean action | change / action |",
@@ -436,14 +438,17 @@ def section_intervention(study, rows, sec, out) -> list[str]:
     for label, names in sec["cells"].items():
         blocks = [study.blocks[n] for n in names]
         for b in _backbones(study, sec, blocks):
+            ran = [c for c in sec["configs"] if rows.over(c, b, blocks)]
+            ref = against if against in ran or not ran else ran[0]
+            note = "" if ref == against else f" (against {ref})"
             for c in sec["configs"]:
-                this, base = rows.over(c, b, blocks), rows.over(against, b, blocks)
+                this, base = rows.over(c, b, blocks), rows.over(ref, b, blocks)
                 p = cmp.paired(this, base)
                 if not p["n"]:
                     continue
                 a = cmp.aggregate(this)
                 ratio = a["change_norm"] / a["action_norm"] if a["action_norm"] > 0 else float("nan")
-                lines.append(f"| {label} | {b} / {c} | {p['n']} | {pct(p['base_success'])} | {pct(p['success'])} | "
+                lines.append(f"| {label} | {b} / {c}{note} | {p['n']} | {pct(p['base_success'])} | {pct(p['success'])} | "
                              f"{pp(p)} | {p['won']} / {p['lost']} | {a['changed_fraction']:.1%} | "
                              f"{a['change_norm']:.3f} | {a['action_norm']:.3f} | {ratio:.2f} |")
     return lines + [""]

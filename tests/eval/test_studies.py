@@ -591,6 +591,31 @@ two = {scene = "lift_plate", seeds = [0, 1], backbones = ["a"]}
     assert table[("both", "a / baseline")].split(" | ")[7:9] == ["0.0%", "0.000"]
 
 
+def test_an_intervention_cell_without_baseline_episodes_is_paired_against_its_first_configuration(tmp_path):
+    """A design block that ran candidate and reference but no baseline still gets its rows, against the reference."""
+    f = tmp_path / "t.toml"
+    f.write_text("""title = "t"
+[backbones]
+a = {expert = {}}
+[configs]
+baseline = {preset = "paper", mode = "baseline"}
+ref = {preset = "default"}
+cand = {preset = "default", approach_pull_m = 0.1, phase_caps = [1.0, 1.0, 1.0, 1.0]}
+[blocks]
+one = {scene = "lift", seeds = [0, 3], backbones = ["a"]}
+""")
+    s = Study(f)
+    rows = [{"backbone": "a", "config": s.config_hash(c, "lift"), "scene": "lift", "task_id": 0, "seed": seed,
+             "success": c == "cand" and seed < 3, "mean_jerk": 1.0, "changed_fraction": 0.5, "change_norm": 0.2,
+             "action_norm": 0.5} for c in ("ref", "cand") for seed in range(4)]
+    sec = {"kind": "intervention", "cells": {"design": ["one"]}, "configs": ["baseline", "ref", "cand"]}
+    lines = report.section_intervention(s, report.Rows(s, rows), sec, tmp_path)
+    table = {tuple(c.strip() for c in ln.strip("|").split("|")[:2]): ln for ln in lines[2:] if ln}
+    assert set(table) == {("design", "a / ref (against ref)"), ("design", "a / cand (against ref)")}
+    assert table[("design", "a / cand (against ref)")].split(" | ")[2:7] == ["4", "0%", "75%", "+75 pp [+26, +124]",
+                                                                            "3 / 0"]
+
+
 def test_a_configuration_s_pose_source_is_hashed_beside_it_and_an_unknown_one_says_which(tmp_path):
     f = tmp_path / "t.toml"
     f.write_text("""title = "t"
