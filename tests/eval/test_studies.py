@@ -593,18 +593,10 @@ two = {scene = "lift_plate", seeds = [0, 1], backbones = ["a"]}
 
 def test_an_intervention_cell_without_baseline_episodes_is_paired_against_its_first_configuration(tmp_path):
     """A design block that ran candidate and reference but no baseline still gets its rows, against the reference."""
-    f = tmp_path / "t.toml"
-    f.write_text("""title = "t"
-[backbones]
-a = {expert = {}}
-[configs]
-baseline = {preset = "paper", mode = "baseline"}
+    s = _one_backbone_study(tmp_path, """baseline = {preset = "paper", mode = "baseline"}
 ref = {preset = "default"}
-cand = {preset = "default", approach_pull_m = 0.1, phase_caps = [1.0, 1.0, 1.0, 1.0]}
-[blocks]
-one = {scene = "lift", seeds = [0, 3], backbones = ["a"]}
-""")
-    s = Study(f)
+cand = {preset = "default", approach_pull_m = 0.1, phase_caps = [1.0, 1.0, 1.0, 1.0]}""",
+                            'one = {scene = "lift", seeds = [0, 3], backbones = ["a"]}')
     rows = [{"backbone": "a", "config": s.config_hash(c, "lift"), "scene": "lift", "task_id": 0, "seed": seed,
              "success": c == "cand" and seed < 3, "mean_jerk": 1.0, "changed_fraction": 0.5, "change_norm": 0.2,
              "action_norm": 0.5} for c in ("ref", "cand") for seed in range(4)]
@@ -616,19 +608,17 @@ one = {scene = "lift", seeds = [0, 3], backbones = ["a"]}
                                                                             "3 / 0"]
 
 
-def test_a_configuration_s_pose_source_is_hashed_beside_it_and_an_unknown_one_says_which(tmp_path):
+def _one_backbone_study(tmp_path, configs: str, blocks: str) -> Study:
+    """A study file of one scripted backbone `a` with these [configs] and [blocks] lines."""
     f = tmp_path / "t.toml"
-    f.write_text("""title = "t"
-[backbones]
-a = {expert = {}}
-[configs]
-exact = {preset = "default", pose_error_m = 0.01}
+    f.write_text(f'title = "t"\n[backbones]\na = {{expert = {{}}}}\n[configs]\n{configs}\n[blocks]\n{blocks}\n')
+    return Study(f)
+
+
+def test_a_configuration_s_pose_source_is_hashed_beside_it_and_an_unknown_one_says_which(tmp_path):
+    s = _one_backbone_study(tmp_path, """exact = {preset = "default", pose_error_m = 0.01}
 markers = {preset = "default", pose_error_m = 0.01, pose_source = "markers"}
-camera = {preset = "default", pose_source = "camera"}
-[blocks]
-b = {scene = "so101_env", seeds = [0, 1], backbones = ["a"]}
-""")
-    s = Study(f)
+camera = {preset = "default", pose_source = "camera"}""", 'b = {scene = "so101_env", seeds = [0, 1], backbones = ["a"]}')
     assert s.config("markers", "so101_env")["pose_source"] == "markers" and "pose_source" not in s.config("exact")
     assert s.config_hash("markers", "so101_env") != s.config_hash("exact", "so101_env")
     with pytest.raises(SystemExit, match="pose_source 'camera'; one of markers"):
