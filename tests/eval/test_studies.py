@@ -249,6 +249,11 @@ def test_config_hash_sees_centre_guide_trailing_only_where_it_can_change_an_acti
     assert config_hash(kept_off.to_dict()) == config_hash(off.replace(**mw).to_dict())
     once = kept_off.replace(centre_guide_once=True, centre_guide_yield_steps=10)
     assert config_hash(once.to_dict()) == config_hash(off.replace(**mw).to_dict())
+    # centre_guide_straddle shapes the guide's pull: nothing where the guide is off or kept off MetaWorld's mocap
+    assert config_hash(off.replace(centre_guide_straddle=True).to_dict()) == config_hash(off.to_dict())
+    straddle = kept_off.replace(centre_guide_straddle=True)
+    assert config_hash(straddle.to_dict()) == config_hash(off.replace(**mw).to_dict())
+    assert config_hash(guide.replace(centre_guide_straddle=True).to_dict()) != config_hash(guide.to_dict())
 
 
 def test_a_backbone_name_keeps_one_meaning(tmp_path):
