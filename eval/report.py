@@ -118,12 +118,13 @@ def section_summary(study, rows, sec, out) -> list[str]:
             for t in tasks:
                 a = [r for r in rs if r["task_id"] == t]
                 ref = [r for r in by.get((b, base), []) if r["task_id"] == t]
-                k, kr = sum(r["success"] for r in a), sum(r["success"] for r in ref)
-                cell = f"{k}/{len(a)}" if a else "-"
-                if a and ref and c != base and k < kr:
+                cell = f"{sum(r['success'] for r in a)}/{len(a)}" if a else "-"
+                # (+) / (-) on the pairs both ran: a configuration may have run blocks `base` did not
+                k, kr, n = _same_seeds(a, ref)
+                if n and c != base and k < kr:
                     cell += " **(-)**"
-                    flags.append(f"{b} / {c} / T{t}: {k}/{len(a)} vs {base} {kr}/{len(ref)}")
-                elif a and ref and c != base and k > kr:
+                    flags.append(f"{b} / {c} / T{t}: {k}/{n} vs {base} {kr}/{n}")
+                elif n and c != base and k > kr:
                     cell += " (+)"
                 cols.append(cell)
             lines.append(f"| {b} | {c} | " + " | ".join(cols) + " |")
@@ -132,6 +133,14 @@ def section_summary(study, rows, sec, out) -> list[str]:
         _plot_bars(cells, out / sec["plot"], sec.get("plot_title", study.title))
         lines += [f"![success and jerk]({sec['plot']})", ""]
     return lines
+
+
+def _same_seeds(rows: list[dict], ref: list[dict]) -> tuple[int, int, int]:
+    """Successes of rows and of ref on the (scene, seed) pairs both hold, and how many pairs that is."""
+    mine = {(r["scene"], r["seed"]): r["success"] for r in rows}
+    theirs = {(r["scene"], r["seed"]): r["success"] for r in ref}
+    both = mine.keys() & theirs.keys()
+    return sum(mine[k] for k in both), sum(theirs[k] for k in both), len(both)
 
 
 def section_paired(study, rows, sec, out) -> list[str]:

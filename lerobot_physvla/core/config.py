@@ -288,7 +288,7 @@ PAPER: dict = {f.name: f.paper for f in FIELDS if f.paper != f.default}
 # from_dict brings a saved dict up one version at a time (UPGRADES[v]: its renamed fields, then the fields it lacks
 # at the value that keeps it acting as it did), then fills what is still unnamed from the shipped default. Adding a
 # field means a new version: CONFIG_VERSION + 1 and an UPGRADES entry giving the field's value from before it.
-CONFIG_VERSION = 2
+CONFIG_VERSION = 3
 SAVED_V0 = frozenset({"alpha_temporal", "alpha_transport", "beta", "cap", "chunk", "d_thresh_m", "delta_grasp_m",
                       "dls_damping", "el_mode", "eps_nm", "grasp_offset_m", "gripper_rule", "h_lift_m", "layout",
                       "lift_bias_m", "mode", "r0_nm", "weighting"})
@@ -296,8 +296,9 @@ SAVED_V0 = frozenset({"alpha_temporal", "alpha_transport", "beta", "cap", "chunk
 ALIASES: dict[str, str] = {"redirect_tol_m": "place_tol_m", "redirect_gain": "place_gain"}
 # {version: ({old name: new name}, {field: value for a dict of that version without it})}. Version 0 -> 1: the
 # renames, and every field added after the paper's main text at its paper value (the option off) as before it existed.
-# Version 1 -> 2: approach_pull_m, at 0 (off) as before it existed.
-UPGRADES: dict[int, tuple[dict, dict]] = {0: (ALIASES, PAPER), 1: ({}, {"approach_pull_m": 0.0})}
+# Version 1 -> 2: approach_pull_m, at 0 (off) as before it existed; 2 -> 3: centre_guide_straddle, off.
+UPGRADES: dict[int, tuple[dict, dict]] = {0: (ALIASES, PAPER), 1: ({}, {"approach_pull_m": 0.0}),
+                                          2: ({}, {"centre_guide_straddle": False})}
 _WARNED: set = set()
 
 
@@ -393,6 +394,7 @@ class PhysVLAConfig:
     close_meets_onset: bool = False
     # centre_guide (core/corrections/centre_guide.py)
     centre_guide: bool = True
+    centre_guide_straddle: bool = False
     centre_guide_trailing: bool = False
     # grasp_guidance (core/corrections/grasp_guidance.py)
     beta: float = 0.0

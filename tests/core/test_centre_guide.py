@@ -177,6 +177,38 @@ def test_it_never_pulls_on_a_rim_grasped_bowl_nor_without_a_measured_scene_nor_w
         np.testing.assert_array_equal(pulled, left)
 
 
+def test_with_straddle_a_hand_within_the_room_beside_the_object_is_left_to_the_policy():
+    """centre_guide_straddle: a camera ACT grasps LIBERO-Object's cream cheese 1.0-1.4 cm off its origin (room beside
+    it: 4 - 2.1 = 1.9 cm) and lifts it; centred, it closed higher and lost it (docs/decisions/25-centre-guide.md).
+    Within the room the guide begins no pull; farther out it pulls onto the origin as without the flag, and a pull
+    that began outside goes on inside."""
+    straddle = ON.replace(centre_guide_straddle=True)
+    room = slack(CREAM_CHEESE, straddle)
+    inside = (0.9 * room, 0.0)
+    left, a, _ = _run(straddle, inside)
+    np.testing.assert_array_equal(left, np.tile(a, (len(left), 1)))
+    assert (_run(ON, inside)[0][RIM_SETTLE_STEPS:, 0] < 0).all()  # without the flag: pulled
+    outside = (0.02, -0.015)  # 2.5 cm: beyond the room
+    np.testing.assert_array_equal(_run(straddle, outside)[0], _run(ON, outside)[0])
+    # a pull that began outside goes on: the hand (which this test holds still) stays pulled once it is inside
+    c, s = Corrector(straddle, batch_size=1), None
+    xs = [0.025] * 8 + [0.5 * room] * 6
+    out = []
+    for t, x in enumerate(xs):
+        s = PhysState.empty(1, 7)
+        s.valid[:], s.dt[:], s.episode_step[:] = 1.0, 0.05, t
+        s.obj_pos[:], s.target_pos[:], s.obj_rest_z[:] = (0.0, 0.0, 0.9), (0.3, 0.0, 0.9), 0.9
+        s.eef_pos[:] = (x, 0.0, 0.95)
+        s.gripper[:], s.M[:], s.J_pos[:, :, :3], s.scene[:] = 0.08, np.eye(7), np.eye(3), CREAM_CHEESE
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out.append(c(a[None].copy(), s)[0])
+    mpu = LIBERO_OSC_POSE.metres_per_unit
+    np.testing.assert_allclose(out[-1][0], -0.5 * room / mpu)
+    # with the guide off the flag changes nothing
+    np.testing.assert_array_equal(_run(OFF.replace(centre_guide_straddle=True), inside)[0], _run(OFF, inside)[0])
+
+
 def test_the_pose_error_it_tolerates_is_the_room_beside_the_object():
     room = 0.04 - 0.021
     pulled, a, _ = _run(ON.replace(pose_error_m=room * 0.9), (0.02, 0.0))

@@ -249,6 +249,11 @@ def test_config_hash_sees_centre_guide_trailing_only_where_it_can_change_an_acti
     assert config_hash(kept_off.to_dict()) == config_hash(off.replace(**mw).to_dict())
     once = kept_off.replace(centre_guide_once=True, centre_guide_yield_steps=10)
     assert config_hash(once.to_dict()) == config_hash(off.replace(**mw).to_dict())
+    # centre_guide_straddle shapes the guide's pull: nothing where the guide is off or kept off MetaWorld's mocap
+    assert config_hash(off.replace(centre_guide_straddle=True).to_dict()) == config_hash(off.to_dict())
+    straddle = kept_off.replace(centre_guide_straddle=True)
+    assert config_hash(straddle.to_dict()) == config_hash(off.replace(**mw).to_dict())
+    assert config_hash(guide.replace(centre_guide_straddle=True).to_dict()) != config_hash(guide.to_dict())
 
 
 def test_a_backbone_name_keeps_one_meaning(tmp_path):
@@ -606,6 +611,24 @@ cand = {preset = "default", approach_pull_m = 0.1, phase_caps = [1.0, 1.0, 1.0, 
     assert set(table) == {("design", "a / ref (against ref)"), ("design", "a / cand (against ref)")}
     assert table[("design", "a / cand (against ref)")].split(" | ")[2:7] == ["4", "0%", "75%", "+75 pp [+26, +124]",
                                                                             "3 / 0"]
+
+
+def test_the_per_task_marks_compare_a_configuration_with_baseline_on_the_seeds_both_ran(tmp_path):
+    """A candidate that ran two blocks where baseline ran one: its pooled count (3 of 8) is above baseline's (2 of 4),
+    but on the four pairs both ran it is 1 against 2, a (-) and a regression; the cell still shows all it ran."""
+    s = _one_backbone_study(tmp_path, """baseline = {preset = "paper", mode = "baseline"}
+cand = {preset = "default"}""", 'one = {scene = "lift", seeds = [0, 3], backbones = ["a"]}\n'
+                            'two = {scene = "lift", seeds = [4, 7], backbones = ["a"]}')
+
+    def row(c, seed, ok):
+        return {"backbone": "a", "config": s.config_hash(c, "lift"), "scene": "lift", "task_id": 0, "seed": seed,
+                "success": ok, "mean_jerk": 1.0}
+    rows = [row("baseline", seed, seed < 2) for seed in range(4)]
+    rows += [row("cand", seed, seed in (0, 4, 5)) for seed in range(8)]
+    sec = {"kind": "summary", "configs": ["baseline", "cand"], "per_task": True}
+    lines = report.section_summary(s, report.Rows(s, rows), sec, tmp_path)
+    assert "| a | cand | 3/8 **(-)** |" in lines
+    assert "- a / cand / T0: 1/4 vs baseline 2/4" in lines
 
 
 def _one_backbone_study(tmp_path, configs: str, blocks: str) -> Study:

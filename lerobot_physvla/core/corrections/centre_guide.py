@@ -28,6 +28,11 @@ across (beyond the paper; centre_guide). centre_guide_approach runs the same ker
     trailing targets (centre_guide_trailing = False): no pull at all on a layout whose step_gain is below 1 (an
     action that moves a target the hand trails, MetaWorld's mocap), where a pull at the step gain never centred a
     hand whose policy kept commanding its own aim (docs/decisions/25-centre-guide.md); the guide is then off.
+    straddle (centre_guide_straddle): a settled hand already within the centre slack of the object's origin
+    (rho < span / 2 - w_o) is not pulled: its open fingers clear the object's narrower side on either side
+    wherever it closes across it, so its grasp needs no centring. A pull that began farther out goes on to the
+    centre as before. Traced: a camera ACT that grasps LIBERO-Object's cream cheese 1.0-1.4 cm off its origin
+    (slack 1.9 cm) succeeds; centred, it closed higher and lost the box (docs/decisions/25-centre-guide.md).
     pose error (pose_error_m = e): the pull aims the hand at the object's pose, so e moves the grasp by up to e;
     it pulls only while e < span / 2 - w_o (CENTRE_SLACK_M: the room an open hand has on either side of the
     object across its narrower side), and leaves the hand to the policy beyond.
@@ -47,14 +52,15 @@ from lerobot_physvla.core.phase import APPROACH, GRASP
 # the pose error it tolerates, m: span / 2 - w_o for an object the hand closes across, -1 (no pull) for any other
 # or with no measured scene (core/geometry.py)
 # the fraction of the gap it commands a step (ActionLayout.step_gain); 1.0: one pull per approach (centre_guide_once)
-# control steps a pulled hand may hold its height before the pull lets go (0: never)
-PARAMS = ("CENTRE_SLACK_M", "CENTRE_GAIN", "CENTRE_ONCE", "CENTRE_YIELD")
+# control steps a pulled hand may hold its height before the pull lets go (0: never); 1.0: no pull begins within the
+# slack (centre_guide_straddle)
+PARAMS = ("CENTRE_SLACK_M", "CENTRE_GAIN", "CENTRE_ONCE", "CENTRE_YIELD", "CENTRE_STRADDLE")
 # the hand's x, y (m) over the last RIM_SETTLE_STEPS committed steps; steps recorded so far; 1.0 while it pulls;
 # 1.0 once a pull has ended in this approach; the hand's lowest z in this pull (m) and the steps since it went
 # CENTRE_DROP_M lower; 1.0 once a pull has let go (yield) in this approach
 MEMORY = (("CENTRE_TRACK", 10), ("CENTRE_AT", 1), ("CENTRE_ON", 1), ("CENTRE_DONE", 1), ("CENTRE_LOW", 1),
           ("CENTRE_STILL", 1), ("CENTRE_LET", 1))
-CENTRE_SLACK_M, CENTRE_GAIN, CENTRE_ONCE, CENTRE_YIELD = slots.params(__file__)
+CENTRE_SLACK_M, CENTRE_GAIN, CENTRE_ONCE, CENTRE_YIELD, CENTRE_STRADDLE = slots.params(__file__)
 CENTRE_TRACK, CENTRE_AT, CENTRE_ON, CENTRE_DONE, CENTRE_LOW, CENTRE_STILL, CENTRE_LET = slots.memory(__file__)
 CENTRE_DROP_M = 0.005  # yield: a pulled hand that goes down less than this is holding its height, metres
 POSE = "aims the hand at the object's pose: no pull once pose_error_m >= span / 2 - the object's narrower half-extent"
@@ -73,8 +79,9 @@ def centre_guide(a_raw, a_phys, idx, geo, p, mem, commit):
     (the approach and grasp phases); z and the gripper untouched."""
     dx, dy, rho, low_open = _where(a_raw, idx, geo, p)
     again = (p[CENTRE_ONCE] < 0.5 or mem[CENTRE_DONE] < 0.5) and mem[CENTRE_LET] < 0.5
+    straddles = p[CENTRE_STRADDLE] > 0.5 and rho < p[CENTRE_SLACK_M]  # the open fingers clear it already
     on = (low_open and rho < p[RIM_REACH_M] and p[POSE_ERROR_M] < p[CENTRE_SLACK_M] and again
-          and (mem[CENTRE_ON] > 0.5 or settled(geo, mem, CENTRE_TRACK, CENTRE_AT)))
+          and (mem[CENTRE_ON] > 0.5 or (not straddles and settled(geo, mem, CENTRE_TRACK, CENTRE_AT))))
     if on:
         for k, c in ((X, 0), (Y, 1)):
             a_phys[idx[k]] = min(max(p[CENTRE_GAIN] * (geo[OBJ + c] - geo[EEF + c]) / p[METRES_PER_UNIT], -1.0), 1.0)
@@ -114,7 +121,8 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                         values={"CENTRE_SLACK_M": lambda c, lay: NO_PULL_M,
                                 "CENTRE_GAIN": lambda c, lay: lay.step_gain,
                                 "CENTRE_ONCE": lambda c, lay: float(c.centre_guide_once),
-                                "CENTRE_YIELD": lambda c, lay: float(c.centre_guide_yield_steps)},
+                                "CENTRE_YIELD": lambda c, lay: float(c.centre_guide_yield_steps),
+                                "CENTRE_STRADDLE": lambda c, lay: float(c.centre_guide_straddle)},
                         on=pulls, commit=centre_guide_commit,
                         fields=(Field("centre_guide", bool, True, False, "an open hand settled low over an object "
                                       "it can close across is pulled onto the object's centre until it closes "
@@ -125,6 +133,10 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                                 Field("centre_guide_yield_steps", int, 0, 0, "the centre guide lets go of a pulled, "
                                       "open hand that has held its height (gone down under 5 mm) this many control "
                                       "steps, until the object is lifted; 0: never", experimental="failed its confirmation, in no preset: docs/decisions/25-centre-guide.md"),
+                                Field("centre_guide_straddle", bool, False, False, "the centre guide begins no "
+                                      "pull on a hand already within the room beside the object (closer to its "
+                                      "origin than span / 2 - its narrower half-extent): its open fingers clear "
+                                      "the object on either side"),
                                 Field("centre_guide_trailing", bool, False, True, "the centre guide also pulls "
                                       "where the action moves a target the hand trails (a layout step_gain below "
                                       "1, MetaWorld's mocap), at that gain; false: it is off on such a layout"),),
