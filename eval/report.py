@@ -120,7 +120,8 @@ def section_summary(study, rows, sec, out) -> list[str]:
                 ref = [r for r in by.get((b, base), []) if r["task_id"] == t]
                 cell = f"{sum(r['success'] for r in a)}/{len(a)}" if a else "-"
                 # (+) / (-) on the pairs both ran: a configuration may have run blocks `base` did not
-                k, kr, n = _same_seeds(a, ref)
+                p = cmp.paired(a, ref)
+                k, kr, n = p["won"] + p["both"], p["lost"] + p["both"], p["n"]
                 if n and c != base and k < kr:
                     cell += " **(-)**"
                     flags.append(f"{b} / {c} / T{t}: {k}/{n} vs {base} {kr}/{n}")
@@ -133,14 +134,6 @@ def section_summary(study, rows, sec, out) -> list[str]:
         _plot_bars(cells, out / sec["plot"], sec.get("plot_title", study.title))
         lines += [f"![success and jerk]({sec['plot']})", ""]
     return lines
-
-
-def _same_seeds(rows: list[dict], ref: list[dict]) -> tuple[int, int, int]:
-    """Successes of rows and of ref on the (scene, seed) pairs both hold, and how many pairs that is."""
-    mine = {(r["scene"], r["seed"]): r["success"] for r in rows}
-    theirs = {(r["scene"], r["seed"]): r["success"] for r in ref}
-    both = mine.keys() & theirs.keys()
-    return sum(mine[k] for k in both), sum(theirs[k] for k in both), len(both)
 
 
 def section_paired(study, rows, sec, out) -> list[str]:
