@@ -136,7 +136,8 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                                 Field("centre_guide_straddle", bool, False, False, "the centre guide begins no "
                                       "pull on a hand already within the room beside the object (closer to its "
                                       "origin than span / 2 - its narrower half-extent): its open fingers clear "
-                                      "the object on either side"),
+                                      "the object on either side", experimental="failed its confirmation, in no "
+                                      "preset: docs/decisions/25-centre-guide.md"),
                                 Field("centre_guide_trailing", bool, False, True, "the centre guide also pulls "
                                       "where the action moves a target the hand trails (a layout step_gain below "
                                       "1, MetaWorld's mocap), at that gain; false: it is off on such a layout"),),
