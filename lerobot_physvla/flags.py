@@ -2,7 +2,7 @@
 
     --policy.postprocess=physvla|none     turn the corrector on (off: lerobot untouched)
     --physvla.preset=<name>               start from a named preset (core.config.PRESETS):
-                                          default | paper | paper_alg1 | smooth | arm
+                                          default | paper | paper_alg1 | smooth | shift | arm
     --physvla.<field>=<value>             any PhysVLAConfig field (mode, cap, weighting, ...)
     --physvla.help                        print every field (group, type, default, meaning) and exit
 

@@ -633,6 +633,13 @@ PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), pla
 # default (2 won / 5 lost), which is why it is not the default.
 PRESETS["smooth"] = PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.8,
                                                lowpass_rough="median", lowpass_phases="approach,grasp,place")
+# for a camera policy under object-position shift (LIBERO-PRO): the default + the approach pull, which takes a hand
+# that closes 10 cm or more from the object to it and carries what it lifts over the target, with the transport
+# phase given the authority for the carry and its smoothing the identity (docs/decisions/29-approach-pull.md:
+# confirmed on the camera ACTs, LIBERO-Object's position perturbations, its original suite and a distractor). Opt-in:
+# never measured on the state policies, MetaWorld or an arm.
+PRESETS["shift"] = PRESETS["default"].replace(approach_pull_m=0.10, phase_caps=(1.0, 1.0, 1.0, 1.0),
+                                              alpha_transport=0.0, lift_bias_m=0.0)
 DEFAULT_PRESET = "default"
 ARM_PRESET = "arm"
 

@@ -187,8 +187,8 @@ class MetaworldPhysVLAEnvConfig(MetaworldEnvConfig):
         physvla_defaults: the corrector's fields this env needs (its action layout, core/config.py LAYOUTS; Branch
             B's weighting), applied where the flags set none (scripts/lerobot_physvla_eval.py for_env).
         physvla_options: the options confirmed on this env alone, applied under the shipped presets (default,
-            smooth, arm) where the flags set none: close_meets_onset, the gripper veto's close that meets the object
-            judged from the physics (docs/decisions/28-close-meets.md).
+            smooth, shift, arm) where the flags set none: close_meets_onset, the gripper veto's close that meets the
+            object judged from the physics (docs/decisions/28-close-meets.md).
     """
 
     task: str = "pick-place-v3"

@@ -95,7 +95,7 @@ def _write_report(out: Path, recorder, pcfg, plots: int = 10) -> None:
     logging.info("physvla: report in %s", md)
 
 
-SHIPPED_PRESETS = ("default", "smooth", "arm")  # the presets an env's own options join (never the paper's readings)
+SHIPPED_PRESETS = ("default", "smooth", "shift", "arm")  # the presets an env's own options join (never the paper's readings)
 
 
 def preset_of(overrides) -> str:

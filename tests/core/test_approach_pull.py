@@ -1,6 +1,6 @@
 """The approach pull (core/corrections/approach_pull.py): a close commanded approach_pull_m or farther from the object
 takes the hand there (rise, cross, descend, close, lift) and carries the object over the target; a close nearer than
-that, a pose error of 1 cm or more, and every preset are left as they were."""
+that, a pose error of 1 cm or more, and every preset but the opt-in `shift` are left as they were."""
 
 from __future__ import annotations
 
@@ -19,8 +19,7 @@ SCALE = 0.05  # LIBERO's OSC: metres of hand travel per action unit
 REST_Z = 0.9
 # the carry acts in the transport phase, which the shipped default gives no authority: the pull's configuration gives
 # it full authority there, with the paper's transport smoothing made the identity (no EMA, no lift bias)
-ON = PRESETS["default"].replace(approach_pull_m=0.10, phase_caps=(1.0, 1.0, 1.0, 1.0), alpha_transport=0.0,
-                                lift_bias_m=0.0)
+ON = PRESETS["shift"]
 OFF = ON.replace(approach_pull_m=0.0)
 TARGET = (0.3, 0.3, REST_Z)
 
@@ -102,8 +101,13 @@ def test_a_missed_grasp_goes_round_again():
     assert len(closes) >= 2  # closed, lifted nothing for LIFT_STEPS, came back down and closed again
 
 
-def test_off_in_every_preset_and_in_a_file_saved_before_it_and_checked():
-    assert all(p.approach_pull_m == 0.0 for p in PRESETS.values())
+def test_off_in_every_preset_but_shift_and_in_a_file_saved_before_it_and_checked():
+    assert [n for n, p in PRESETS.items() if p.approach_pull_m != 0.0] == ["shift"]
+    # shift: the default and the pull's configuration, nothing else changed
+    assert ON.replace(approach_pull_m=0.0, phase_caps=PRESETS["default"].phase_caps,
+                      alpha_transport=PRESETS["default"].alpha_transport,
+                      lift_bias_m=PRESETS["default"].lift_bias_m) == PRESETS["default"]
+    assert ON.approach_pull_m == 0.10 and ON.phase_caps == (1.0, 1.0, 1.0, 1.0)
     assert PhysVLAConfig.from_dict({"version": 1, "cap": 0.05}).approach_pull_m == 0.0
     with pytest.raises(ValueError, match="approach_pull_m"):
         PhysVLAConfig(approach_pull_m=-0.1)

@@ -197,6 +197,17 @@ def test_the_presets_are_the_configurations_that_were_measured():
     assert report.compare_verdict(y, report.Rows(y, run.rows_of(y)), c, "confirm") is True
 
 
+def test_the_shift_preset_is_the_approach_pull_its_study_confirmed():
+    """PRESETS["shift"] is true_pose_pull's candidate, and every rule of that study's confirmation passes on its
+    stored records (the decision fixed in the study file)."""
+    s = Study(study_mod.find("true_pose_pull"))
+    assert s.config_hash("default + approach pull") == config_hash(PRESETS["shift"].to_dict())
+    rows = report.Rows(s, run.rows_of(s))
+    confirmed = [c for c in s.compares if c.blocks["confirm"]]
+    assert len(confirmed) == 2
+    assert all(report.compare_verdict(s, rows, c, "confirm") is True for c in confirmed)
+
+
 # ---------------------------------------------------------------------------------------------- store
 
 
