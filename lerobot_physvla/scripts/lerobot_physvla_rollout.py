@@ -107,6 +107,11 @@ def activate_rollout(argv: list[str]) -> None:
             step = PhysVLARobotActionStep(**fields)
             if said:  # the first line, once the step is built (a bad flag's error is the only line)
                 print(said, file=sys.stderr)
+            if step.cfg.approach_pull_m > 0:  # opt-in, measured in simulation only
+                print("lerobot-physvla: warning: the approach pull (approach_pull_m > 0: the `shift` preset) was "
+                      "measured in simulation only, on LIBERO's camera ACTs (docs/decisions/29-approach-pull.md); on "
+                      "this arm it will move the hand to the object and carry it, with authority in every phase",
+                      file=sys.stderr)
     except (FlagError, ArmError, compat.UnsupportedLerobot) as e:
         print(f"lerobot-physvla: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None
