@@ -7,8 +7,9 @@ The episode runs as eval/harness.py runs the study's unit (the block's scene, th
 configuration as the study resolves it on that scene). Printed every `--every` control steps, and at every step
 where the corrector changed the policy's action beyond clipping it, or the phase changed:
 
-    step  phase  d_xy  h  lift   the corrector's phase; the hand's horizontal distance from the object and its height
-                                 above the object's origin, the object's lift (cm)
+    step  phase  d_xy  h  lift  tgt   the corrector's phase; the hand's horizontal distance from the object and its
+                                      height above the object's origin, the object's lift, and the object's
+                                      horizontal distance from the target (cm)
     policy xyz g / executed xyz g  the action's first three channels and the gripper (action units)
     why                          what moved it: "clip" (the action space alone), "gripper held open", "xyz", or
                                  a pass-through's reason
@@ -85,7 +86,7 @@ class Printer:
     def __init__(self, grip: int | None, every: int, low: float, high: float, gripper_open: float):
         self.grip, self.every, self.low, self.high, self.open = grip, every, low, high, gripper_open
         self.last_phase = None
-        print(f"{'step':>4} {'phase':>5} {'d_xy':>5} {'h':>5} {'lift':>5}   {'policy xyz':<20} {'g':>5}   "
+        print(f"{'step':>4} {'phase':>5} {'d_xy':>5} {'h':>5} {'lift':>5} {'tgt':>5}   {'policy xyz':<20} {'g':>5}   "
               f"{'executed xyz':<20} {'g':>5}   why")
 
     def why(self, raw: np.ndarray, out: np.ndarray, status: int) -> str:
@@ -111,9 +112,10 @@ class Printer:
             return
         self.last_phase = phase
         h = (st.eef_pos[0, 2] - st.obj_pos[0, 2]) * CM
+        tgt = float(np.hypot(*(st.obj_pos[0, :2] - st.target_pos[0, :2]))) * CM
         g = "" if self.grip is None else f"{raw[self.grip]:+5.2f}"
         go = "" if self.grip is None else f"{out[self.grip]:+5.2f}"
-        print(f"{step:4d} {phase:5d} {d.d_obj_xy[0] * CM:5.1f} {h:5.1f} {d.lift[0] * CM:5.1f}   "
+        print(f"{step:4d} {phase:5d} {d.d_obj_xy[0] * CM:5.1f} {h:5.1f} {d.lift[0] * CM:5.1f} {tgt:5.1f}   "
               f"{np.array2string(raw[:3], precision=2, suppress_small=True):<20} {g:>5}   "
               f"{np.array2string(out[:3], precision=2, suppress_small=True):<20} {go:>5}   {why}")
 

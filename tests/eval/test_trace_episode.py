@@ -76,3 +76,18 @@ def test_the_trace_is_the_harness_episode_and_prints_the_veto(study, capsys):
     ref = harness.compute_unit(unit)["records"][0]
     for k in ("success", "steps", "changed_fraction", "change_norm", "veto_fire_rate"):
         assert rec[k] == ref[k], k
+
+
+def test_a_printed_step_gives_the_objects_distance_from_the_target(capsys):
+    """The `tgt` column: the object's horizontal distance from the target, cm (a bowl set down off its plate)."""
+    from types import SimpleNamespace
+
+    p = trace_tool.Printer(grip=6, every=1, low=-1.0, high=1.0, gripper_open=-1.0)
+    st = SimpleNamespace(eef_pos=np.array([[0.1, 0.0, 0.95]]), obj_pos=np.array([[0.1, 0.0, 0.9]]),
+                         target_pos=np.array([[0.13, 0.04, 0.9]]))
+    d = SimpleNamespace(phase=np.array([2]), status=np.array([0]), d_obj_xy=np.array([0.0]), lift=np.array([0.02]))
+    a = np.zeros((1, 7))
+    p(10, st, a, a, d)
+    head, row = capsys.readouterr().out.splitlines()
+    assert head.split()[:6] == ["step", "phase", "d_xy", "h", "lift", "tgt"]
+    assert row.split()[:6] == ["10", "2", "0.0", "5.0", "2.0", "5.0"]  # 3-4-5 cm from the plate
