@@ -208,10 +208,12 @@ FAMILIES: tuple[tuple[str, tuple, str], ...] = (
     ("Camera ACT, Diffusion (64 px, no object poses), LIBERO-Object, -Spatial",
      (("camera_libero_pro", "shipped default", ("original",), ()),
       ("camera_spatial_diffusion", "shipped default", ("spatial_original", "object_original"), ())), ""),
-    ("Camera ACT, LIBERO-PRO swap, x-shift",
-     (("camera_libero_pro", "shipped default", ("swap", "temp_x"), ()),), ""),
-    ("Camera ACT, LIBERO-PRO mug, new objects",
-     (("camera_libero_pro", "shipped default", ("with_mug", "replaced"), ()),), ""),
+    ("Camera ACTs, LIBERO-PRO swap, x-shift",
+     (("camera_libero_pro", "shipped default", ("swap", "temp_x"), ()),
+      ("camera_spatial_diffusion", "shipped default", ("spatial_swap",), ())), ""),
+    ("Camera ACTs, LIBERO-PRO mug, new objects",
+     (("camera_libero_pro", "shipped default", ("with_mug", "replaced"), ()),
+      ("camera_spatial_diffusion", "shipped default", ("spatial_with_mug",), ())), ""),
 )
 MARKS = "†‡§¶"
 
