@@ -213,7 +213,7 @@ FAMILIES: tuple[tuple[str, tuple, str], ...] = (
       ("camera_spatial_diffusion", "shipped default", ("spatial_swap",), ())), ""),
     ("Camera ACTs, LIBERO-PRO mug, new objects",
      (("camera_libero_pro", "shipped default", ("with_mug", "replaced"), ()),
-      ("camera_spatial_diffusion", "shipped default", ("spatial_with_mug",), ())), ""),
+      ("camera_spatial_diffusion", "shipped default", ("spatial_with_mug", "spatial_replaced"), ())), ""),
 )
 MARKS = "†‡§¶"
 

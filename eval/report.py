@@ -275,8 +275,11 @@ def compare_lines(study, rows, c) -> list[str]:
             verdict = cmp.combine(results)
             recorded = c.verdicts.get(role)
             rec = "" if recorded is None else f" (recorded when decided: {'pass' if recorded else 'fail'})"
+            unrun = [n for n, bl in zip(names, blocks)
+                     if not any(rows.get(k, b, bl) for b in bl.backbones for k in (c.candidate, c.baseline))]
+            gap = f" Not run: {', '.join(unrun)} (no episode); the verdict reads the blocks that ran." if unrun else ""
             lines += ["", f"Rule on the {role} blocks: **{'incomplete' if verdict is None else 'pass' if verdict else 'fail'}**"
-                      f"{rec}.", ""]
+                      f"{rec}.{gap}", ""]
     return lines
 
 

@@ -433,6 +433,12 @@ def test_a_new_study_runs_from_its_file_and_resumes_from_its_data(tmp_path, monk
     assert "3 episodes" in text and "Rule on the confirm blocks: **pass**" in text
     assert "| expert_clean / candidate vs default | 1 |" in text
     assert run.run(Study(path), workers=1) == 0  # everything is in the data: nothing runs again
+    # a confirmation block with no episode is named under the rule, not passed over in silence
+    path.write_text(STUDY.replace('confirm = ["fresh"]', 'confirm = ["fresh", "later"]').replace(
+        "[[compare]]", 'later = {scene = "libero_spatial", tasks = [0, 0], seeds = [4, 4], backbones = ["expert_clean"]}'
+        "\n[[compare]]"))
+    text = run.write_report(Study(path)).read_text()
+    assert "Rule on the confirm blocks: **incomplete**. Not run: later (no episode)" in text
 
 
 def test_a_study_that_names_an_unknown_configuration_says_which(tmp_path):
