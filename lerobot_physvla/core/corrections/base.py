@@ -121,9 +121,10 @@ def needs_authority(cfg, field: str, phases: tuple[int, ...], off: str) -> None:
         for ph in phases:
             if caps and caps[ph] == 0.0:
                 phase = PHASE_NAMES[ph]
+                example = ", ".join("1" if k == ph else f"{v:g}" for k, v in enumerate(caps))
                 raise ValueError(f"physvla: {field} acts with the {phase} phase's authority, which is 0 in {name}: set "
                                  f"{name} with {'an' if phase[0] in 'aeiou' else 'a'} {phase} entry above 0 (e.g. "
-                                 f"(1, 1, 0, 1)), or {off}")
+                                 f"({example})), or {off}")
 
 
 def unit_interval(cfg, *names: str) -> None:

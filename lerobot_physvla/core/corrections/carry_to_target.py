@@ -1,0 +1,94 @@
+"""Transport: an object the policy lowers far from the target, carried over the target instead (beyond the paper;
+carry_far_m > 0).
+
+A camera policy under position shift (LIBERO-PRO's swap) can grasp the right object and still carry it to where its
+demonstrations had the target: it lifts the bowl, moves a few centimetres and sets it down 15-19 cm off the plate,
+before it opens (traced: eval/results/camera_spatial_diffusion/transcripts.md). The place phase is never entered, so
+the release veto has nothing to hold. The state says where the target is; this correction takes the object there:
+
+    n = |p_tgt - p_obj|_xy (m)
+    engaged:  in the transport phase, the policy lowers the object it holds (a_z < -LOWER_U) or opens, with
+              n >= carry_far_m + pose_error_m; held while the phase stays transport
+    then, k = the layout's step_gain, every command in action units clipped to [-1, 1]:
+      carry   n > place_tol_m: a_xy = k (p_tgt - p_obj)_xy / scale, the hand held CARRY_M above the target's origin,
+              the gripper closed
+      over    n <= place_tol_m: a_xy as carry, z and the gripper the policy's (it lowers and opens where it means to)
+    Rotation channels stay the policy's. scale = metres per action unit.
+
+It ends where the phase leaves transport: in the place phase (the place corrections and the policy take over) or
+where the object is back at rest (set down: the policy's open is then its release). A policy that lowers the object
+within carry_far_m of the target is left alone. Needs the transport phase's authority (phase_caps).
+"""
+
+from numba import njit
+
+from lerobot_physvla.core.corrections import slots
+from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, METRES_PER_UNIT, OBJ,
+                                                   POSE_ERROR_M, TGT, X, Y, Z, Correction, Field, needs_authority)
+from lerobot_physvla.core.corrections.place_redirect import PLACE_TOL_M
+from lerobot_physvla.core.phase import TRANSPORT
+
+PARAMS = ("CARRY_FAR_M", "CARRY_GAIN")  # the object's distance from the target that engages it, m; step gain
+MEMORY = (("CARRY_ON", 1),)  # 1.0 while engaged
+CARRY_FAR_M, CARRY_GAIN = slots.params(__file__)
+(CARRY_ON,) = slots.memory(__file__)
+CARRY_HEIGHT_M = 0.15  # the carrying hand's height above the target's origin, m (the approach pull's carry)
+LOWER_U = 0.25  # a z command below -LOWER_U (action units) lowers the object
+
+
+@njit(error_model="numpy")
+def _toward(d_m, p):
+    """A gap in metres as a clipped command: step_gain x gap / metres per unit, in [-1, 1]."""
+    return min(max(p[CARRY_GAIN] * d_m / p[METRES_PER_UNIT], -1.0), 1.0)
+
+
+@njit(error_model="numpy")
+def carry_to_target(a_raw, a_phys, idx, geo, p, mem, commit):
+    """x, y, z and the gripper of an engaged carry (module doc); nothing until the policy lowers or opens far off."""
+    g = idx[GRIPPER]
+    if g < 0:
+        return
+    ex, ey = geo[TGT] - geo[OBJ], geo[TGT + 1] - geo[OBJ + 1]
+    n = (ex * ex + ey * ey) ** 0.5
+    on = mem[CARRY_ON] > 0.5
+    if not on and n >= p[CARRY_FAR_M] + p[POSE_ERROR_M]:
+        c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])
+        opens = (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) > 0.0
+        on = opens or a_raw[idx[Z]] < -LOWER_U
+        if on and commit:
+            mem[CARRY_ON] = 1.0
+    if not on:
+        return
+    a_phys[idx[X]] = _toward(ex, p)
+    a_phys[idx[Y]] = _toward(ey, p)
+    if n > p[PLACE_TOL_M]:
+        a_phys[idx[Z]] = _toward(geo[TGT + 2] + CARRY_HEIGHT_M - geo[EEF + 2], p)
+        a_phys[g] = p[GRIPPER_CLOSED]
+
+
+@njit(error_model="numpy")
+def carry_to_target_commit(phase, geo, p, mem):
+    """The carry ends where the phase leaves transport (place; or approach / grasp: the object set down)."""
+    if phase != TRANSPORT:
+        mem[CARRY_ON] = 0.0
+
+
+def _check(c) -> None:
+    if c.carry_far_m < 0.0:
+        raise ValueError(f"physvla: carry_far_m is a distance in metres (0: off); got {c.carry_far_m}")
+    if c.carry_far_m > 0.0 and c.action_layout.absolute:
+        raise ValueError("physvla: carry_far_m commands a delta layout's x, y, z; this layout's positions are "
+                         "absolute targets: leave carry_far_m at 0")
+    if c.carry_far_m > 0.0:
+        needs_authority(c, "carry_far_m", (TRANSPORT,), "leave carry_far_m at 0")
+
+
+CORRECTION = Correction("carry_to_target", TRANSPORT, 10, carry_to_target,
+                        values={"CARRY_FAR_M": lambda c, lay: c.carry_far_m,
+                                "CARRY_GAIN": lambda c, lay: lay.step_gain},
+                        on=lambda c: c.carry_far_m > 0.0, commit=carry_to_target_commit,
+                        fields=(Field("carry_far_m", float, 0.0, 0.0, "in transport, an object the policy lowers (or "
+                                      "lets go of) this far (m, horizontally) or farther from the target is carried "
+                                      "over the target instead, 15 cm above it, and handed back there; 0: off"),),
+                        check=lambda c: _check(c),
+                        pose="engages only where the object is carry_far_m + pose_error_m or farther from the target")

@@ -1,0 +1,105 @@
+"""The carry to the target (core/corrections/carry_to_target.py): an object the policy lowers (or lets go of)
+carry_far_m or farther from the target is carried over it, 15 cm above the target's origin, and handed back there
+(the policy's descent and release); a lowering near the target, a policy that does not lower, a pose error that
+covers the distance, and every preset are left as they were."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from lerobot_physvla.core.config import PRESETS, PhysVLAConfig
+from lerobot_physvla.core.corrections.carry_to_target import CARRY_HEIGHT_M
+from lerobot_physvla.core.corrector import Corrector
+from lerobot_physvla.core.phase import Phase
+from lerobot_physvla.core.state import PhysState
+
+SCALE = 0.05  # LIBERO's OSC: metres of hand travel per action unit
+REST_Z = 0.9
+TARGET = np.array([0.0, 0.0, REST_Z])
+GRASP = np.array([0.04, 0.0, 0.02])  # the hand's offset from the held object's origin (a rim grasp), m
+# the carry acts in the transport phase, which the shipped default gives no authority: full authority there, with the
+# paper's transport smoothing made the identity (as `shift` gives the approach pull's carry)
+OFF = PRESETS["default"].replace(phase_caps=(1.0, 1.0, 1.0, 1.0), alpha_transport=0.0, lift_bias_m=0.0)
+ON = OFF.replace(carry_far_m=0.10)
+
+
+def _state(t, eef, obj):
+    s = PhysState.empty(1, 7)
+    s.valid[:], s.dt[:], s.episode_step[:] = 1.0, 0.05, t
+    s.obj_pos[:], s.target_pos[:], s.obj_rest_z[:] = obj, TARGET, REST_Z
+    s.eef_pos[:], s.gripper[:] = eef, 0.04
+    s.M[:], s.J_pos[:, :, :3] = np.eye(7), np.eye(3)
+    return s
+
+
+def _run(cfg, start_xy, z_cmd=-0.5, steps=120, lift=0.06):
+    """A policy holding an object lifted `lift` m, at start_xy (m from the target), that keeps commanding z_cmd with
+    the gripper closed, and opens once the object is back at rest; the object moves with the closed hand and stops
+    at its rest height (set down). (actions, phases, object positions)."""
+    c = Corrector(cfg, batch_size=1)
+    obj = np.array([*start_xy, REST_Z + lift])
+    eef = obj + GRASP
+    outs, phases, objs = [], [], []
+    for t in range(steps):
+        rested = obj[2] <= REST_Z + 1e-9
+        a = np.array([[0.0, 0.0, z_cmd, 0, 0, 0, -1.0 if rested else 1.0]])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out = c(a, _state(t, eef, obj))[0]
+        outs.append(out)
+        phases.append(int(c.last.phase[0]))
+        objs.append(obj.copy())
+        step = out[:3] * SCALE
+        eef = eef + step
+        if out[6] > 0:  # held: the object moves with the hand, down to its rest
+            obj = obj + step
+            obj[2] = max(obj[2], REST_Z)
+            eef = obj + GRASP
+    return np.array(outs), phases, np.array(objs)
+
+
+def _off_target(objs):
+    return np.linalg.norm(objs[:, :2] - TARGET[:2], axis=1)
+
+
+def test_an_object_lowered_far_from_the_target_is_carried_over_it_and_set_down_there():
+    outs, phases, objs = _run(ON, (0.18, 0.05))
+    assert phases[0] == Phase.TRANSPORT
+    assert outs[0][2] > 0 and outs[0][0] < 0 and outs[0][6] == 1.0  # up and toward the target, held closed
+    top = objs[:, 2].max() + GRASP[2]
+    assert abs(top - (REST_Z + CARRY_HEIGHT_M)) < 0.02  # carried at its height above the target's origin
+    far = _off_target(objs) > ON.place_tol_m
+    assert all(o[6] == 1.0 for o, f, ph in zip(outs, far, phases) if f and ph == Phase.TRANSPORT)  # never let go off it
+    rest = [k for k in range(len(objs)) if objs[k][2] <= REST_Z + 1e-9]
+    assert rest, "the carried object was never set down"
+    assert _off_target(objs)[rest[0]] <= ON.place_tol_m + 0.01  # set down on the target, by the policy's descent
+    off, _, objs_off = _run(OFF, (0.18, 0.05))  # uncorrected: set down where it was lowered
+    assert _off_target(objs_off)[-1] > 0.15
+
+
+def test_a_lowering_within_carry_far_m_and_a_policy_that_does_not_lower_are_left_alone():
+    for xy, z in (((0.08, 0.0), -0.5), ((0.0, 0.09), -1.0), ((0.2, 0.0), 0.1), ((0.2, 0.1), -0.2)):
+        on, *_ = _run(ON, xy, z_cmd=z, steps=40)
+        off, *_ = _run(OFF, xy, z_cmd=z, steps=40)
+        np.testing.assert_array_equal(on, off)
+
+
+def test_no_carry_where_the_pose_error_covers_the_distance():
+    told = ON.replace(pose_error_m=0.1)
+    on, *_ = _run(told, (0.15, 0.0), steps=40)
+    off, *_ = _run(OFF.replace(pose_error_m=0.1), (0.15, 0.0), steps=40)
+    np.testing.assert_array_equal(on, off)
+    carried, *_ = _run(ON.replace(pose_error_m=0.01), (0.15, 0.0), steps=40)
+    assert not np.array_equal(carried, off)
+
+
+def test_off_in_every_preset_and_in_a_file_saved_before_it_and_checked():
+    assert [n for n, p in PRESETS.items() if p.carry_far_m != 0.0] == []
+    assert PhysVLAConfig.from_dict({"version": 3, "cap": 0.05}).carry_far_m == 0.0
+    with pytest.raises(ValueError, match="carry_far_m"):
+        PhysVLAConfig(carry_far_m=-0.1)
+    with pytest.raises(ValueError, match=r"carry_far_m.*\(1, 1, 1, 1\)"):
+        PhysVLAConfig(carry_far_m=0.1)  # the shipped default's transport authority is 0
