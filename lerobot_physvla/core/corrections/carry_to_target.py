@@ -7,33 +7,37 @@ before it opens (traced: eval/results/camera_spatial_diffusion/transcripts.md). 
 the release veto has nothing to hold. The state says where the target is; this correction takes the object there:
 
     n = |p_tgt - p_obj|_xy (m)
-    engaged:  in the transport phase, the policy lowers the object it holds (a_z < -LOWER_U) or opens, with
-              n >= carry_far_m + pose_error_m; held while the phase stays transport
+    engaged:  in the transport or place phase, the policy lowers the object it holds (a_z < -LOWER_U) or opens,
+              with n >= carry_far_m + pose_error_m; held until the object is set down (the approach or grasp phase)
     then, k = the layout's step_gain, every command in action units clipped to [-1, 1]:
-      carry   n > place_tol_m: a_xy = k (p_tgt - p_obj)_xy / scale, the hand held CARRY_M above the target's origin,
-              the gripper closed
-      over    n <= place_tol_m: a_xy as carry, z and the gripper the policy's (it lowers and opens where it means to)
+      carry   n > place_tol_m: a_xy = k (p_tgt - p_obj)_xy / scale, the hand held CARRY_HEIGHT_M above the target's
+              origin, the gripper closed
+      set     once n <= place_tol_m: a_xy as carry, a_z = -k lift / scale (lift = the object's height above its rest,
+              m), the gripper closed down to SET_LIFT_M, then open: the corrector sets the object down on the target
     Rotation channels stay the policy's. scale = metres per action unit.
 
-It ends where the phase leaves transport: in the place phase (the place corrections and the policy take over) or
-where the object is back at rest (set down: the policy's open is then its release). A policy that lowers the object
-within carry_far_m of the target is left alone. Needs the transport phase's authority (phase_caps).
+It goes on through the place phase (carry_to_target_place.py), which a hand holding a bowl by its rim enters with the
+bowl still centimetres off the target (docs/decisions/30-carry-to-target.md), and ends where the object is back at
+rest and the hand has left it (the approach or grasp phase). A policy that lowers the object within carry_far_m of
+the target is left alone. Needs the transport and place phases' authority (phase_caps).
 """
 
 from numba import njit
 
 from lerobot_physvla.core.corrections import slots
-from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, METRES_PER_UNIT, OBJ,
-                                                   POSE_ERROR_M, TGT, X, Y, Z, Correction, Field, needs_authority)
+from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, LIFT, METRES_PER_UNIT,
+                                                   OBJ, POSE_ERROR_M, TGT, X, Y, Z, Correction, Field, needs_authority)
 from lerobot_physvla.core.corrections.place_redirect import PLACE_TOL_M
-from lerobot_physvla.core.phase import TRANSPORT
+from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT
 
 PARAMS = ("CARRY_FAR_M", "CARRY_GAIN")  # the object's distance from the target that engages it, m; step gain
-MEMORY = (("CARRY_ON", 1),)  # 1.0 while engaged
+MEMORY = (("CARRY_ON", 1),)  # 1.0 while carrying, 2.0 while setting down, 0.0 off
 CARRY_FAR_M, CARRY_GAIN = slots.params(__file__)
 (CARRY_ON,) = slots.memory(__file__)
 CARRY_HEIGHT_M = 0.15  # the carrying hand's height above the target's origin, m (the approach pull's carry)
 LOWER_U = 0.25  # a z command below -LOWER_U (action units) lowers the object
+SET_LIFT_M = 0.03  # the object's height above its rest at which the set-down opens the gripper, m
+POSE = "engages only where the object is carry_far_m + pose_error_m or farther from the target"
 
 
 @njit(error_model="numpy")
@@ -51,6 +55,7 @@ def carry_to_target(a_raw, a_phys, idx, geo, p, mem, commit):
     ex, ey = geo[TGT] - geo[OBJ], geo[TGT + 1] - geo[OBJ + 1]
     n = (ex * ex + ey * ey) ** 0.5
     on = mem[CARRY_ON] > 0.5
+    setting = mem[CARRY_ON] > 1.5
     if not on and n >= p[CARRY_FAR_M] + p[POSE_ERROR_M]:
         c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])
         opens = (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) > 0.0
@@ -61,15 +66,21 @@ def carry_to_target(a_raw, a_phys, idx, geo, p, mem, commit):
         return
     a_phys[idx[X]] = _toward(ex, p)
     a_phys[idx[Y]] = _toward(ey, p)
-    if n > p[PLACE_TOL_M]:
+    setting = setting or n <= p[PLACE_TOL_M]
+    if setting:
+        a_phys[idx[Z]] = _toward(-geo[LIFT], p)
+        a_phys[g] = p[GRIPPER_CLOSED] if geo[LIFT] > SET_LIFT_M else p[GRIPPER_OPEN]
+        if commit:
+            mem[CARRY_ON] = 2.0
+    else:
         a_phys[idx[Z]] = _toward(geo[TGT + 2] + CARRY_HEIGHT_M - geo[EEF + 2], p)
         a_phys[g] = p[GRIPPER_CLOSED]
 
 
 @njit(error_model="numpy")
 def carry_to_target_commit(phase, geo, p, mem):
-    """The carry ends where the phase leaves transport (place; or approach / grasp: the object set down)."""
-    if phase != TRANSPORT:
+    """The carry ends where the object is set down and left (the approach or grasp phase)."""
+    if phase == APPROACH or phase == GRASP:
         mem[CARRY_ON] = 0.0
 
 
@@ -80,7 +91,7 @@ def _check(c) -> None:
         raise ValueError("physvla: carry_far_m commands a delta layout's x, y, z; this layout's positions are "
                          "absolute targets: leave carry_far_m at 0")
     if c.carry_far_m > 0.0:
-        needs_authority(c, "carry_far_m", (TRANSPORT,), "leave carry_far_m at 0")
+        needs_authority(c, "carry_far_m", (TRANSPORT, PLACE), "leave carry_far_m at 0")
 
 
 CORRECTION = Correction("carry_to_target", TRANSPORT, 10, carry_to_target,
@@ -89,6 +100,5 @@ CORRECTION = Correction("carry_to_target", TRANSPORT, 10, carry_to_target,
                         on=lambda c: c.carry_far_m > 0.0, commit=carry_to_target_commit,
                         fields=(Field("carry_far_m", float, 0.0, 0.0, "in transport, an object the policy lowers (or "
                                       "lets go of) this far (m, horizontally) or farther from the target is carried "
-                                      "over the target instead, 15 cm above it, and handed back there; 0: off"),),
-                        check=lambda c: _check(c),
-                        pose="engages only where the object is carry_far_m + pose_error_m or farther from the target")
+                                      "over the target instead, 15 cm above it, and set down there; 0: off"),),
+                        check=lambda c: _check(c), pose=POSE)
