@@ -9,8 +9,9 @@ With the shipped declarations:
 
     approach   rim_guide where it is on (it replaces approach_veto), else approach_veto; then centre_guide_approach
     grasp      grasp_guidance, then lift_assist, then rim_guide_grasp, then centre_guide (each where it is on)
-    transport  transport_smoothing
-    place      place_deceleration (eq. 5), place_redirect or release_veto (place_rule), then release_assist
+    transport  transport_smoothing, then approach_pull_carry, carry_to_target (each where it is on)
+    place      place_deceleration (eq. 5), place_redirect or release_veto (place_rule), then release_assist, then
+               carry_to_target_place
     (mode temporal: temporal_ema in every phase, instead of the above)
 
 The per-env arithmetic is compiled with numba (microseconds an env-step, where small-array numpy

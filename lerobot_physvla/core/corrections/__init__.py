@@ -9,7 +9,8 @@ its parameters and memory, when the configuration turns it on and what it replac
 
 Beyond the paper (docs/method.md; how each was chosen: docs/decisions/): place_redirect, release_veto,
 release_assist (place), lift_assist (grasp), rim_guide (approach), rim_guide_grasp (grasp), centre_guide (grasp)
-and centre_guide_approach (the same pull in the approach phase).
+and centre_guide_approach (the same pull in the approach phase), approach_pull (approach; approach_pull_grasp and
+approach_pull_carry carry it on) and carry_to_target (transport; carry_to_target_place carries it on).
 
 This module collects the declarations (CORRECTIONS, in slots.files() order) and turns a configuration into
 the parameter vector p (`params`); `lerobot_physvla.core.branch_a` assembles the per-phase dispatch from
