@@ -112,6 +112,10 @@ def activate_rollout(argv: list[str]) -> None:
                       "measured in simulation only, on LIBERO's camera ACTs (docs/decisions/29-approach-pull.md); on "
                       "this arm it will move the hand to the object and carry it, with authority in every phase",
                       file=sys.stderr)
+            if step.cfg.carry_far_m > 0:  # an option, measured in simulation only
+                print("lerobot-physvla: warning: the carry to the target (carry_far_m > 0) was measured in simulation "
+                      "only, on LIBERO's camera ACTs (docs/decisions/30-carry-to-target.md); on this arm it will carry "
+                      "a held object over the target and set it down itself", file=sys.stderr)
     except (FlagError, ArmError, compat.UnsupportedLerobot) as e:
         print(f"lerobot-physvla: error: {e}", file=sys.stderr)
         raise SystemExit(2) from None

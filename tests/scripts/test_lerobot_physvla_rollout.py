@@ -124,7 +124,7 @@ def test_on_arms_the_default_is_the_approach_veto_with_the_arms_own_geometry(res
     assert cfg.place_rule == "release_veto" and (cfg.veto_height_m, cfg.veto_reach_m) == (0.06, 0.10)
 
 
-def test_the_approach_pull_on_an_arm_is_warned_of_and_the_arms_default_is_not(capsys, restore_rollout):
+def test_the_approach_pull_and_the_carry_on_an_arm_are_warned_of_and_the_arms_default_is_not(capsys, restore_rollout):
     flags = ["lerobot-rollout", "--policy.postprocess=physvla", "--physvla.arm=so101", "--physvla.object_key=block",
              "--physvla.target_xyz=[0.2,0.1,0.02]"]
     activate_rollout(list(flags))
@@ -132,5 +132,8 @@ def test_the_approach_pull_on_an_arm_is_warned_of_and_the_arms_default_is_not(ca
     activate_rollout([*flags, "--physvla.preset=shift"])
     assert restore_rollout.build_rollout_context.step.cfg.approach_pull_m == 0.1
     err = capsys.readouterr().err
-    assert "warning: the approach pull" in err and "simulation only" in err
+    assert "warning: the approach pull" in err and "simulation only" in err and "carry to the target" not in err
+    activate_rollout([*flags, "--physvla.preset=shift", "--physvla.carry_far_m=0.1"])
+    err = capsys.readouterr().err
+    assert "warning: the carry to the target" in err and "simulation only" in err
 
