@@ -639,10 +639,12 @@ PRESETS["smooth"] = PRESETS["default"].replace(lowpass="adaptive", lowpass_space
 # for a camera policy under object-position shift (LIBERO-PRO): the default + the approach pull, which takes a hand
 # that closes 10 cm or more from the object to it and carries what it lifts over the target, with the transport
 # phase given the authority for the carry and its smoothing the identity (docs/decisions/29-approach-pull.md:
-# confirmed on the camera ACTs, LIBERO-Object's position perturbations, its original suite and a distractor). Opt-in:
-# never measured on the state policies, MetaWorld or an arm.
+# confirmed on the camera ACTs, LIBERO-Object's position perturbations, its original suite and a distractor), and the
+# carry to the target, which carries an object the policy lowers 10 cm or more from the target over it
+# (docs/decisions/30-carry-to-target.md: confirmed on LIBERO-Spatial's camera ACTs, its swap, its original suite, a
+# distractor and LIBERO-Object's swap). Opt-in: never measured on the state policies, MetaWorld or an arm.
 PRESETS["shift"] = PRESETS["default"].replace(approach_pull_m=0.10, phase_caps=(1.0, 1.0, 1.0, 1.0),
-                                              alpha_transport=0.0, lift_bias_m=0.0)
+                                              alpha_transport=0.0, lift_bias_m=0.0, carry_far_m=0.10)
 DEFAULT_PRESET = "default"
 ARM_PRESET = "arm"
 

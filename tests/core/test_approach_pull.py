@@ -103,10 +103,10 @@ def test_a_missed_grasp_goes_round_again():
 
 def test_off_in_every_preset_but_shift_and_in_a_file_saved_before_it_and_checked():
     assert [n for n, p in PRESETS.items() if p.approach_pull_m != 0.0] == ["shift"]
-    # shift: the default and the pull's configuration, nothing else changed
+    # shift: the default, the pull's configuration and the carry to the target (tests/core/test_carry_to_target.py)
     assert ON.replace(approach_pull_m=0.0, phase_caps=PRESETS["default"].phase_caps,
                       alpha_transport=PRESETS["default"].alpha_transport,
-                      lift_bias_m=PRESETS["default"].lift_bias_m) == PRESETS["default"]
+                      lift_bias_m=PRESETS["default"].lift_bias_m, carry_far_m=0.0) == PRESETS["default"]
     assert ON.approach_pull_m == 0.10 and ON.phase_caps == (1.0, 1.0, 1.0, 1.0)
     assert PhysVLAConfig.from_dict({"version": 1, "cap": 0.05}).approach_pull_m == 0.0
     with pytest.raises(ValueError, match="approach_pull_m"):

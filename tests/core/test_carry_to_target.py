@@ -101,8 +101,9 @@ def test_no_carry_where_the_pose_error_covers_the_distance():
     assert not np.array_equal(carried, off)
 
 
-def test_off_in_every_preset_and_in_a_file_saved_before_it_and_checked():
-    assert [n for n, p in PRESETS.items() if p.carry_far_m != 0.0] == []
+def test_off_in_every_preset_but_shift_and_in_a_file_saved_before_it_and_checked():
+    assert [n for n, p in PRESETS.items() if p.carry_far_m != 0.0] == ["shift"]
+    assert PRESETS["shift"].carry_far_m == ON.carry_far_m == 0.10
     assert PhysVLAConfig.from_dict({"version": 3, "cap": 0.05}).carry_far_m == 0.0
     with pytest.raises(ValueError, match="carry_far_m"):
         PhysVLAConfig(carry_far_m=-0.1)

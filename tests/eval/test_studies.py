@@ -197,15 +197,19 @@ def test_the_presets_are_the_configurations_that_were_measured():
     assert report.compare_verdict(y, report.Rows(y, run.rows_of(y)), c, "confirm") is True
 
 
-def test_the_shift_preset_is_the_approach_pull_its_study_confirmed():
-    """PRESETS["shift"] is true_pose_pull's candidate, and every rule of that study's confirmation passes on its
-    stored records (the decision fixed in the study file)."""
-    s = Study(study_mod.find("true_pose_pull"))
-    assert s.config_hash("default + approach pull") == config_hash(PRESETS["shift"].to_dict())
-    rows = report.Rows(s, run.rows_of(s))
-    confirmed = [c for c in s.compares if c.blocks["confirm"]]
-    assert len(confirmed) == 2
-    assert all(report.compare_verdict(s, rows, c, "confirm") is True for c in confirmed)
+def test_the_shift_preset_is_the_approach_pull_and_the_carry_their_studies_confirmed():
+    """PRESETS["shift"] is carry_to_target's candidate, whose reference is true_pose_pull's candidate (the same
+    configuration, the carry off), and every rule of both studies' confirmations passes on their stored records (the
+    decisions fixed in the study files)."""
+    pull, carry = Study(study_mod.find("true_pose_pull")), Study(study_mod.find("carry_to_target"))
+    assert carry.config_hash("shift + carry") == config_hash(PRESETS["shift"].to_dict())
+    assert carry.config_hash("shift") == pull.config_hash("default + approach pull") == config_hash(
+        PRESETS["shift"].replace(carry_far_m=0.0).to_dict())
+    for s, n in ((pull, 2), (carry, 3)):
+        rows = report.Rows(s, run.rows_of(s))
+        confirmed = [c for c in s.compares if c.blocks["confirm"]]
+        assert len(confirmed) == n, s.name
+        assert all(report.compare_verdict(s, rows, c, "confirm") is True for c in confirmed), s.name
 
 
 # ---------------------------------------------------------------------------------------------- store

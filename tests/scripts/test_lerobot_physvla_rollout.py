@@ -129,11 +129,12 @@ def test_the_approach_pull_and_the_carry_on_an_arm_are_warned_of_and_the_arms_de
              "--physvla.target_xyz=[0.2,0.1,0.02]"]
     activate_rollout(list(flags))
     assert "approach pull" not in capsys.readouterr().err
-    activate_rollout([*flags, "--physvla.preset=shift"])
+    activate_rollout([*flags, "--physvla.preset=shift", "--physvla.carry_far_m=0"])
     assert restore_rollout.build_rollout_context.step.cfg.approach_pull_m == 0.1
     err = capsys.readouterr().err
     assert "warning: the approach pull" in err and "simulation only" in err and "carry to the target" not in err
-    activate_rollout([*flags, "--physvla.preset=shift", "--physvla.carry_far_m=0.1"])
+    activate_rollout([*flags, "--physvla.preset=shift"])  # the preset carries too
+    assert restore_rollout.build_rollout_context.step.cfg.carry_far_m == 0.1
     err = capsys.readouterr().err
-    assert "warning: the carry to the target" in err and "simulation only" in err
+    assert "warning: the carry to the target" in err and "warning: the approach pull" in err
 
