@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from lerobot_physvla.core.config import PRESETS, PhysVLAConfig
-from lerobot_physvla.core.corrections.approach_pull import CARRY_M, CLEAR_M, CLOSE_STEPS, GRASP_H_M, NEAR_M
+from lerobot_physvla.core.corrections.approach_pull import (CARRY_M, CLEAR_M, CLOSE_STEPS, GRASP_H_M, NEAR_M,
+                                                             STALL_MAX_H_M)
 from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.core.phase import Phase
 from lerobot_physvla.core.state import PhysState
@@ -33,10 +34,11 @@ def _state(t, eef, obj):
     return s
 
 
-def _run(cfg, start_xy, steps=140, grip=1.0, follow=True):
+def _run(cfg, start_xy, steps=140, grip=1.0, follow=True, floor=-1.0):
     """A policy that keeps closing (gripper +1) and pushing down where it is, a hand that moves SCALE m per action
-    unit, an object at the origin that moves with a closed hand once the pull lifts it (follow); (actions, phases,
-    hand positions relative to the object)."""
+    unit (never lower than `floor` m above the object's origin: the fingers resting on it), an object at the origin
+    that moves with a closed hand once the pull lifts it (follow); (actions, phases, hand positions relative to the
+    object)."""
     c = Corrector(cfg, batch_size=1)
     eef, obj = np.array([*start_xy, REST_Z]), np.array([0.0, 0.0, REST_Z])
     outs, phases, hands, objs = [], [], [], []
@@ -51,6 +53,7 @@ def _run(cfg, start_xy, steps=140, grip=1.0, follow=True):
         objs.append(obj.copy())
         held = follow and out[6] > 0 and np.linalg.norm((eef - obj)[:2]) < 0.02 and (out[2] > 0 or obj[2] > REST_Z)
         eef = eef + out[:3] * SCALE
+        eef[2] = max(eef[2], obj[2] + floor)
         if held:
             obj = obj + out[:3] * SCALE
     return np.array(outs), phases, np.array(hands), np.array(objs)
@@ -92,6 +95,33 @@ def test_no_pull_with_a_pose_error_of_a_centimetre_or_more_nor_for_an_open_polic
         plain, *_ = _run(OFF.replace(pose_error_m=cfg.pose_error_m), (0.2, 0.0), steps=30, grip=grip,
                            follow=False)
         np.testing.assert_array_equal(pulled, plain)
+
+
+def test_a_stalled_descent_closes_where_it_stalls_only_with_the_option():
+    """Fingers resting 3.5 cm over the object's origin: the close waits for 1 cm and never comes (the limit traced in
+    docs/decisions/29-approach-pull.md); with approach_pull_stall_steps = 10 the hand closes there after 10 steps
+    without coming 2 mm lower, and lifts the object. Stalled above STALL_MAX_H_M it never closes."""
+    stuck, *_ = _run(ON, (0.2, 0.0), steps=200, floor=0.035)
+    assert not (stuck[:, 6] > 0).any()  # held open to the end
+    stall = ON.replace(approach_pull_stall_steps=10)
+    outs, phases, hands, _ = _run(stall, (0.2, 0.0), steps=200, floor=0.035)
+    closed = [k for k, o in enumerate(outs) if o[6] > 0]
+    assert closed, "the stalled hand never closed"
+    k = closed[0]
+    assert abs(hands[k][2] - 0.035) < 1e-9 and np.linalg.norm(hands[k][:2]) <= 3 * NEAR_M
+    landed = next(j for j in range(k) if abs(hands[j][2] - 0.035) < 1e-9)
+    assert 10 <= k - landed <= 12  # ten steps without progress, then the close
+    assert all(outs[j][2] == 0 for j in range(k, k + CLOSE_STEPS)) and outs[k + CLOSE_STEPS][2] > 0  # close, lift
+    assert Phase.TRANSPORT in phases
+    high, *_ = _run(stall, (0.2, 0.0), steps=200, floor=STALL_MAX_H_M + 0.01)
+    assert not (high[:, 6] > 0).any()
+    reach, *_ = _run(stall, (0.2, 0.0), steps=200)  # a hand that reaches 1 cm closes as without the option
+    plain, *_ = _run(ON, (0.2, 0.0), steps=200)
+    np.testing.assert_array_equal(reach, plain)
+    with pytest.raises(ValueError, match="approach_pull_stall_steps"):
+        PhysVLAConfig(approach_pull_stall_steps=-1)
+    assert all(p.approach_pull_stall_steps == 0 for p in PRESETS.values())
+    assert PhysVLAConfig.from_dict({"version": 4, "cap": 0.05}).approach_pull_stall_steps == 0
 
 
 def test_a_missed_grasp_goes_round_again():

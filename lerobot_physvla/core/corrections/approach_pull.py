@@ -16,7 +16,9 @@ the hand to the object and the object over the target:
       cross    rho > 3 NEAR_M:                           a_xy = k (p_obj - p_eef)_xy / scale, a_z = k (CLEAR_M - h) / scale
       descend  rho <= 3 NEAR_M:                          a_xy as cross, a_z = k (GRASP_H_M - h) / scale
       (the gripper open in all three)
-      close    at GRASP_H_M: CLOSE_STEPS steps of a_xy, a_z = 0, the gripper closed
+      close    at GRASP_H_M: CLOSE_STEPS steps of a_xy, a_z = 0, the gripper closed; or, with
+               approach_pull_stall_steps = n > 0, where the descent stalls: n control steps without coming
+               STALL_DZ_M lower, at h <= STALL_MAX_H_M (an object the fingers rest on before GRASP_H_M)
       lift     then a_xy = 0, a_z = LIFT_U, the gripper closed, until the object is lifted past h_lift (after
                LIFT_STEPS steps without that, the grasp missed: back to rise)
       carry    lifted (transport): a_xy = k (p_tgt - p_obj)_xy / scale, the hand held CARRY_M above the target's
@@ -38,11 +40,13 @@ from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED,
                                                    OBJ, POSE_ERROR_M, TGT, X, Y, Z, Correction, Field, needs_authority)
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT
 
-PARAMS = ("PULL_FAR_M", "PULL_GAIN")  # the close's distance from the object that engages the pull, m; step gain
-# 1.0 while engaged; the stage (0 travel, 1 close, 2 lift, 3 carry); committed steps in the stage
-MEMORY = (("PULL_ON", 1), ("PULL_STAGE", 1), ("PULL_STEPS", 1))
-PULL_FAR_M, PULL_GAIN = slots.params(__file__)
-PULL_ON, PULL_STAGE, PULL_STEPS = slots.memory(__file__)
+# the close's distance from the object that engages the pull, m; step gain; the stalled descent's steps (0: off)
+PARAMS = ("PULL_FAR_M", "PULL_GAIN", "PULL_STALL_STEPS")
+# 1.0 while engaged; the stage (0 travel, 1 close, 2 lift, 3 carry); committed steps in the stage (in travel: steps
+# since the descent last came STALL_DZ_M lower); the hand's height then, m
+MEMORY = (("PULL_ON", 1), ("PULL_STAGE", 1), ("PULL_STEPS", 1), ("PULL_LOW", 1))
+PULL_FAR_M, PULL_GAIN, PULL_STALL_STEPS = slots.params(__file__)
+PULL_ON, PULL_STAGE, PULL_STEPS, PULL_LOW = slots.memory(__file__)
 CLEAR_M = 0.12  # the travel height of the hand above the object's origin, m
 GRASP_H_M = 0.01  # the hand's height above the object's origin where it closes, m
 NEAR_M = 0.01  # horizontal distance from the object within which the hand descends, m
@@ -51,6 +55,9 @@ CLOSE_STEPS = 10  # control steps the gripper is given to close before the lift
 LIFT_U = 1.0  # the lift's z command, action units
 LIFT_STEPS = 30  # control steps of lift without the object lifted before the grasp counts as missed
 CARRY_M = 0.15  # the carrying hand's height above the target's origin, m
+STALL_DZ_M = 0.002  # the descent's progress that resets the stall count, m
+STALL_MAX_H_M = 0.06  # the highest stalled hand (above the object's origin) that closes, m
+FAR_UP_M = 1e6  # a height no hand is at: the stall count starts afresh, m
 
 
 @njit(error_model="numpy")
@@ -70,7 +77,7 @@ def approach_pull(a_raw, a_phys, idx, geo, p, mem, commit):
         c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])
         on = (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0  # the policy closes, far from the object
         if on and commit:
-            mem[PULL_ON], mem[PULL_STAGE], mem[PULL_STEPS] = 1.0, 0.0, 0.0
+            mem[PULL_ON], mem[PULL_STAGE], mem[PULL_STEPS], mem[PULL_LOW] = 1.0, 0.0, 0.0, FAR_UP_M
     if not on:
         return
     h = geo[EEF + 2] - geo[OBJ + 2]
@@ -93,6 +100,13 @@ def approach_pull(a_raw, a_phys, idx, geo, p, mem, commit):
             a_phys[g] = p[GRIPPER_OPEN]
         if commit and rho <= NEAR_M and h <= GRASP_H_M + SLACK_M:
             mem[PULL_STAGE], mem[PULL_STEPS] = 1.0, 0.0
+        elif commit and p[PULL_STALL_STEPS] > 0.0:
+            if rho > 3.0 * NEAR_M or h < mem[PULL_LOW] - STALL_DZ_M:  # not descending, or still coming down
+                mem[PULL_LOW], mem[PULL_STEPS] = h, 0.0
+            else:
+                mem[PULL_STEPS] += 1.0
+                if mem[PULL_STEPS] >= p[PULL_STALL_STEPS] and h <= STALL_MAX_H_M:  # stalled: close where it is
+                    mem[PULL_STAGE], mem[PULL_STEPS] = 1.0, 0.0
     else:
         a_phys[idx[X]], a_phys[idx[Y]] = 0.0, 0.0
         a_phys[idx[Z]] = 0.0 if stage < 1.5 else LIFT_U
@@ -103,7 +117,7 @@ def approach_pull(a_raw, a_phys, idx, geo, p, mem, commit):
             if stage < 1.5 and mem[PULL_STEPS] >= CLOSE_STEPS:
                 mem[PULL_STAGE], mem[PULL_STEPS] = 2.0, 0.0
             elif stage > 1.5 and mem[PULL_STEPS] >= LIFT_STEPS and geo[LIFT] <= 0.0:
-                mem[PULL_STAGE], mem[PULL_STEPS] = 0.0, 0.0  # the grasp missed: go round again
+                mem[PULL_STAGE], mem[PULL_STEPS], mem[PULL_LOW] = 0.0, 0.0, FAR_UP_M  # missed: go round again
 
 
 @njit(error_model="numpy")
@@ -126,15 +140,23 @@ def _check(c) -> None:
                          "absolute targets: leave approach_pull_m at 0")
     if c.approach_pull_m > 0.0:
         needs_authority(c, "approach_pull_m", (APPROACH, GRASP, TRANSPORT), "leave approach_pull_m at 0")
+    if c.approach_pull_stall_steps < 0:
+        raise ValueError("physvla: approach_pull_stall_steps is a count of control steps (0: off); got "
+                         f"{c.approach_pull_stall_steps}")
 
 
 POSE = "aims the hand at the object's pose: engages only while pose_error_m < 1 cm"
 CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                         values={"PULL_FAR_M": lambda c, lay: c.approach_pull_m,
-                                "PULL_GAIN": lambda c, lay: lay.step_gain},
+                                "PULL_GAIN": lambda c, lay: lay.step_gain,
+                                "PULL_STALL_STEPS": lambda c, lay: float(c.approach_pull_stall_steps)},
                         on=lambda c: c.approach_pull_m > 0.0, commit=approach_pull_commit,
                         fields=(Field("approach_pull_m", float, 0.0, 0.0, "a policy that closes this far (m, "
                                       "horizontally) or farther from the object is taken there: the hand rises, "
                                       "crosses over the object, comes down, closes, lifts it and carries it over the "
-                                      "target; 0: off"),),
+                                      "target; 0: off"),
+                                Field("approach_pull_stall_steps", int, 0, 0, "in the approach pull's descent, a hand "
+                                      "that has come no lower (by 2 mm) for this many control steps, 6 cm or less "
+                                      "above the object's origin, closes where it is; 0: off (the close waits for "
+                                      "1 cm)")),
                         check=lambda c: _check(c), pose=POSE)
