@@ -14,6 +14,28 @@ import pytest
 from lerobot_physvla.core.state import PhysState
 
 
+# Files that run console scripts, train or compile in subprocesses, longest first (minutes each on 2 cores). CI runs
+# `-n auto --dist loadfile` with xdist's reorder by test count off (pyproject.toml): whole files go to the workers in
+# collection order, so these start first and the many short files fill in behind them, and the workers end together.
+# A file missing here only runs later; the order never changes what a test checks.
+FIRST = (
+    "tests/scripts/test_lerobot_eval.py",
+    "tests/eval/test_learned_backbones.py",
+    "tests/test_readme.py",
+    "tests/policies/test_camera_policies.py",
+    "tests/core/test_corrections.py",
+    "tests/robots/test_lerobot_rollout_sim_arms.py",
+    "tests/test_moved.py",
+    "tests/robots/test_lerobot_rollout_rtc.py",
+    "tests/scripts/test_lerobot_eval_metaworld.py",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    rank = {path: k for k, path in enumerate(FIRST)}
+    items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(FIRST)))  # stable: the rest keep their order
+
+
 def make_state(
     batch_size: int = 1,
     n: int = 7,

@@ -101,30 +101,6 @@ print(repr(float(c(np.zeros((1, 7)), st)[0, 0])))
 """
 
 
-@pytest.mark.slow
-def test_editing_one_correction_file_recompiles_the_cached_kernel(tmp_path):
-    """numba's cache checks a kernel against its own file only: an edit to grasp_guidance.py must
-    still reach the cached phase_step that compiles it in (closure-keyed, see branch_a.py)."""
-    shutil.copytree(PKG / "lerobot_physvla", tmp_path / "lerobot_physvla",
-                    ignore=shutil.ignore_patterns("__pycache__"))
-    env = {"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
-
-    def probe():
-        r = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, cwd=tmp_path)
-        assert r.returncode == 0, r.stderr
-        return float(r.stdout.strip().splitlines()[-1])
-
-    before = probe()  # grasp phase, beta 0.5: 0.5 * 0.02 m / 0.05 m per unit = 0.2
-    assert before == pytest.approx(0.2)
-    assert any((tmp_path / "numba").rglob("*branch_a*phase_step*.nbi")), "phase_step was not cached"
-    assert any((tmp_path / "numba").rglob("*tick*correct_tick*.nbi")), "the fused tick was not cached"
-    assert probe() == before  # served from the cache
-    f = tmp_path / "lerobot_physvla/core/corrections/grasp_guidance.py"
-    f.write_text(f.read_text().replace("beta, scale = p[BETA], p[METRES_PER_UNIT]",
-                                       "beta, scale = 1.0, p[METRES_PER_UNIT]"))
-    assert probe() == pytest.approx(0.4)  # the edit is in effect, not a stale compiled kernel
-
-
 def test_place_redirect_steers_the_held_object_over_the_target():
     from lerobot_physvla.core.corrections.base import TGT
     from lerobot_physvla.core.corrections.place_redirect import place_redirect
@@ -574,23 +550,47 @@ print(repr(float(Corrector(on, 1)(a, st)[0, 0] - Corrector(off, 1)(a, st)[0, 0])
 
 
 @pytest.mark.slow
-def test_a_new_correction_is_its_file(tmp_path):
+def test_a_correction_is_its_file_and_the_cached_kernel_follows_a_new_or_edited_one(tmp_path):
     """A file in core/corrections declaring its slots, its fields and a Correction, and its field's line in the
     PhysVLAConfig class, is all it takes: its field is a PhysVLAConfig field and a --physvla flag, its parameter
     reaches its kernel, and the assembled dispatch calls it in its phase (grasp here), after the paper's grasp
-    guidance. Without the class's line, importing the package says which line to add."""
+    guidance. Without the class's line, importing the package says which line to add.
+
+    numba's cache checks a kernel against its own file only: an edit to grasp_guidance.py must still reach the
+    cached phase_step that compiles it in (closure-keyed, see branch_a.py). One copy of the package, compiled
+    cold once (the slow part), serves both."""
     shutil.copytree(PKG / "lerobot_physvla", tmp_path / "lerobot_physvla",
                     ignore=shutil.ignore_patterns("__pycache__"))
     (tmp_path / "lerobot_physvla/core/corrections/zz_demo.py").write_text(_NEW_CORRECTION)
-    env = {"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
-    r = subprocess.run([sys.executable, "-c", _NEW_PROBE], env=env, capture_output=True, text=True, cwd=tmp_path)
+    cache = tmp_path / "numba"
+    env = {"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": str(cache)}
+
+    def run(probe):
+        return subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, cwd=tmp_path)
+
+    r = run(_NEW_PROBE)
     assert r.returncode != 0 and "add `demo_shift_u: float = 0.0` under its group" in r.stderr
     config = tmp_path / "lerobot_physvla/core/config.py"
     text = config.read_text()
     anchor = "    # Branch B (eq. 4-6)\n"  # the corrections' fields come before Branch B's; zz_demo's last of them
     assert text.count(anchor) == 1
     config.write_text(text.replace(anchor, "    demo_shift_u: float = 0.0\n" + anchor))
-    r = subprocess.run([sys.executable, "-c", _NEW_PROBE], env=env, capture_output=True, text=True, cwd=tmp_path)
+    r = run(_NEW_PROBE)
     assert r.returncode == 0, r.stderr[-3000:]
     shift, default = r.stdout.strip().splitlines()[-1].split()
     assert float(shift) == pytest.approx(0.25) and float(default) == 0.0
+    assert any(cache.rglob("*branch_a*phase_step*.nbi")), "phase_step was not cached"
+    assert any(cache.rglob("*tick*correct_tick*.nbi")), "the fused tick was not cached"
+
+    def grasp_probe():
+        r = run(_PROBE)
+        assert r.returncode == 0, r.stderr
+        return float(r.stdout.strip().splitlines()[-1])
+
+    written = {f: f.stat().st_mtime_ns for f in cache.rglob("*")}
+    assert grasp_probe() == pytest.approx(0.2)  # grasp phase, beta 0.5: 0.5 * 0.02 m / 0.05 m per unit = 0.2
+    assert {f: f.stat().st_mtime_ns for f in cache.rglob("*")} == written  # served from the cache, nothing compiled
+    f = tmp_path / "lerobot_physvla/core/corrections/grasp_guidance.py"
+    f.write_text(f.read_text().replace("beta, scale = p[BETA], p[METRES_PER_UNIT]",
+                                       "beta, scale = 1.0, p[METRES_PER_UNIT]"))
+    assert grasp_probe() == pytest.approx(0.4)  # the edit is in effect, not a stale compiled kernel

@@ -112,16 +112,19 @@ def test_pose_faults_on_the_state_export_reach_the_corrector_through_the_real_co
 
 
 def test_a_goal_outside_the_model_is_one_row_per_episode_with_its_task_and_its_reason(policies, tmp_path):
-    """LIBERO-Goal tasks 0 ("open the middle drawer") and 7 ("turn on the stove") have no On / In predicate."""
+    """LIBERO-Goal tasks 0 ("open the middle drawer") and 7 ("turn on the stove") have no On / In predicate. Run
+    through the project's own console script, lerobot-physvla-eval, which takes lerobot-eval's arguments."""
     out = tmp_path / "goal"
     r = _eval(policies["state"], out, ["--env.type=libero_physvla", "--env.cameras=false", "--env.task=libero_goal",
                                        "--env.task_ids=[0,7]", "--eval.n_episodes=1", "--eval.batch_size=1",
-                                       "--env.episode_length=12", "--policy.postprocess=physvla"])
+                                       "--env.episode_length=12", "--policy.postprocess=physvla",
+                                       "--physvla.mode=phys"], exe="lerobot-physvla-eval")
     episodes = [json.loads(line) for line in (out / "physvla_episodes.jsonl").read_text().splitlines()]
     assert [(e["task_id"], e["steps"], e["passthrough"]) for e in episodes] == [
         (0, 12, {"unsupported_goal": 12}), (7, 12, {"unsupported_goal": 12})]
     diag = json.loads((out / "physvla_diagnostics.json").read_text())
     assert diag["episodes"] == 2 and diag["passthrough"] == {"unsupported_goal": 24}
+    assert diag["physvla_config"]["mode"] == "phys"  # lerobot-eval's arguments and the --physvla flags, as given
     assert "pass-throughs: unsupported_goal 24" in r.stdout  # the table's line
     assert "(pass-throughs: unsupported_goal 24)" in r.stderr  # and the log's, the same count
     assert "open(wooden_cabinet_1_middle_region) has no On / In(object, target) predicate" in r.stderr
@@ -156,15 +159,6 @@ def test_bad_flags_fail_with_one_line(flags, message, tmp_path):
     assert r.returncode == 2
     errors = [line for line in r.stderr.splitlines() if line.startswith("lerobot-physvla: error:")]
     assert len(errors) == 1 and message in errors[0], r.stderr[-2000:]
-
-
-def test_physvla_eval_console_script_takes_the_same_arguments(policies, tmp_path):
-    out = tmp_path / "own"
-    _eval(policies["state"], out, ["--env.type=libero_physvla", "--env.cameras=false", "--eval.n_episodes=1",
-                                   "--eval.batch_size=1", "--env.episode_length=5", "--policy.postprocess=physvla",
-                                   "--physvla.mode=phys"], exe="lerobot-physvla-eval")
-    diag = json.loads((out / "physvla_diagnostics.json").read_text())
-    assert diag["physvla_config"]["mode"] == "phys" and diag["steps"] == 5
 
 
 def test_a_libero_pro_suite_runs_under_plain_libero_and_its_unmodelled_goal_passes_through(policies, tmp_path):
