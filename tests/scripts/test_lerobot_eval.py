@@ -145,20 +145,13 @@ def test_flag_absent_or_none_is_plain_lerobot_and_physvla_changes_the_rollout(po
     assert "physvla: diagnostics in" in r.stdout
 
 
-@pytest.mark.parametrize(
-    "flags,message",
-    [
-        (["--policy.postprocess=physvla", "--physvla.mode=turbo"], "unknown mode 'turbo'"),
-        (["--policy.postprocess=fizz"], "--policy.postprocess=fizz: unknown"),
-        (["--policy.postprocess=physvla", "--physvla.capp=0.1"], "--physvla.capp: unknown"),
-        (["--physvla.mode=phys"], "need --policy.postprocess=physvla"),
-    ],
-)
-def test_bad_flags_fail_with_one_line(flags, message, tmp_path):
-    r = run([str(BIN / "lerobot-eval"), "--env.type=libero", *COMMON, *flags])
+def test_a_bad_flag_stops_the_real_console_script_with_one_line(tmp_path):
+    """The plugin reads the flags at lerobot's plugin import; each message: tests/scripts/test_lerobot_physvla_eval.py."""
+    r = run([str(BIN / "lerobot-eval"), "--env.type=libero", *COMMON, "--policy.postprocess=physvla",
+             "--physvla.mode=turbo"])
     assert r.returncode == 2
     errors = [line for line in r.stderr.splitlines() if line.startswith("lerobot-physvla: error:")]
-    assert len(errors) == 1 and message in errors[0], r.stderr[-2000:]
+    assert len(errors) == 1 and "unknown mode 'turbo'" in errors[0], r.stderr[-2000:]
 
 
 def test_a_libero_pro_suite_runs_under_plain_libero_and_its_unmodelled_goal_passes_through(policies, tmp_path):
