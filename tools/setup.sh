@@ -54,4 +54,10 @@ ls -1dt "$cache"/venv-*/.last_used 2>/dev/null | tail -n +3 | while read -r f; d
   old="$(dirname "$f")"; echo "setup: removing unused venv $old"; rm -rf "$old"
 done
 "$venv/bin/physvla-libero-setup"
+# numba compiles the corrector's kernels into its cache beside this checkout's sources: about a minute the first
+# time, seconds after. Here, once, not in the first evaluation nor in each test worker at the same time.
+"$venv/bin/python" -W ignore -c 'from lerobot_physvla.core.config import preset
+from lerobot_physvla.core.corrector import Corrector
+Corrector(preset("default"), 1)'
+echo "setup: the corrector's kernels are compiled (numba's cache, lerobot_physvla/**/__pycache__)"
 echo "setup: ready: $root/.venv -> $venv"
