@@ -70,6 +70,23 @@ def identity_stats(inputs: str = "state") -> dict:
     return stats
 
 
+def make(out, type: str = "act", inputs: str = "state", seed: int = 0) -> None:
+    """Save a random-weight `type` policy for `inputs` (INPUTS) with identity statistics to `out`."""
+    torch.manual_seed(seed)
+    cfg = make_policy_config(type, device="cpu", input_features=dict(INPUTS[inputs]), **SMALL[type])
+    if inputs in ROBOTS:  # no env config: the robot's joint targets are the action
+        from lerobot.policies.factory import get_policy_class
+
+        cfg.output_features = {"action": PolicyFeature(type=FeatureType.ACTION, shape=(ACTION_DIM[inputs],))}
+        policy = get_policy_class(cfg.type)(cfg)
+    else:
+        policy = make_policy(cfg, env_cfg=LiberoEnv(task="libero_spatial"))
+    pre, post = make_pre_post_processors(cfg, dataset_stats=identity_stats(inputs))
+    policy.save_pretrained(out)
+    pre.save_pretrained(out)
+    post.save_pretrained(out)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("out")
@@ -77,19 +94,7 @@ def main() -> None:
     ap.add_argument("--inputs", default="state", choices=sorted(INPUTS))
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
-    torch.manual_seed(args.seed)
-    cfg = make_policy_config(args.type, device="cpu", input_features=dict(INPUTS[args.inputs]), **SMALL[args.type])
-    if args.inputs in ROBOTS:  # no env config: the robot's joint targets are the action
-        from lerobot.policies.factory import get_policy_class
-
-        cfg.output_features = {"action": PolicyFeature(type=FeatureType.ACTION, shape=(ACTION_DIM[args.inputs],))}
-        policy = get_policy_class(cfg.type)(cfg)
-    else:
-        policy = make_policy(cfg, env_cfg=LiberoEnv(task="libero_spatial"))
-    pre, post = make_pre_post_processors(cfg, dataset_stats=identity_stats(args.inputs))
-    policy.save_pretrained(args.out)
-    pre.save_pretrained(args.out)
-    post.save_pretrained(args.out)
+    make(args.out, args.type, args.inputs, args.seed)
     print(f"saved a random-weight {args.type} policy to {args.out}")
 
 
