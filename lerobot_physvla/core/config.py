@@ -392,7 +392,6 @@ class PhysVLAConfig:
     pose_noise_m: float = 0.0
     # approach_pull (core/corrections/approach_pull.py)
     approach_pull_m: float = 0.0
-    approach_pull_stall_steps: int = 0
     # approach_veto (core/corrections/approach_veto.py)
     close_meets_onset: bool = False
     # carry_to_target (core/corrections/carry_to_target.py)
@@ -440,6 +439,7 @@ class PhysVLAConfig:
     lowpass_lag: LowpassLag = "trail"
     # experimental: options that failed their confirmation and sit in no preset (each field's `experimental` says
     # why); settable, warned of once when set, listed apart in --physvla.help
+    approach_pull_stall_steps: int = 0
     veto_close_lead_s: float = 0.0
     close_meets: bool = False
     centre_guide_once: bool = False

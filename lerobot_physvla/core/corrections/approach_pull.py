@@ -158,5 +158,6 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                                 Field("approach_pull_stall_steps", int, 0, 0, "in the approach pull's descent, a hand "
                                       "that has come no lower (by 2 mm) for this many control steps, 6 cm or less "
                                       "above the object's origin, closes where it is; 0: off (the close waits for "
-                                      "1 cm)")),
+                                      "1 cm)", experimental="failed its design rule, in no preset: "
+                                      "docs/decisions/31-pull-stall-close.md")),
                         check=lambda c: _check(c), pose=POSE)
