@@ -83,6 +83,18 @@ REPLAY_REPO_ID = "local/replay_test"  # tests/replay/replay_data.REPO_ID
 
 
 @pytest.fixture(scope="session")
+def random_policy():
+    """backbones/make_random_policy.py's make(out, type="act", inputs="state", seed=0), in process, loaded by its
+    path (the module the tests import as `backbones` is eval/backbones.py)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("make_random_policy", ROOT / "backbones/make_random_policy.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.make
+
+
+@pytest.fixture(scope="session")
 def scripted_policy(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("policy") / "scripted"
     r = subprocess.run([sys.executable, str(ROOT / "backbones/make_scripted_policy.py"), str(out)],

@@ -38,11 +38,9 @@ CORRECTED = ("--policy.postprocess=physvla", "--physvla.arm=so101", "--physvla.o
              f"--physvla.target_xyz={TARGET}")
 
 
-def test_rtc_with_an_act_stops_with_lerobots_own_message(tmp_path):
+def test_rtc_with_an_act_stops_with_lerobots_own_message(tmp_path, random_policy):
     policy = tmp_path / "act"
-    from backbones import make_random_policy
-
-    make_random_policy.make(policy, inputs="so101")
+    random_policy(policy, inputs="so101")
     r = _rollout(tmp_path, policy, tmp_path / "log.jsonl", "--inference.type=rtc", *CORRECTED)
     assert "RTC inference is not supported by policy type 'act'" in r.stderr
     assert not (tmp_path / "log.jsonl").exists() or not (tmp_path / "log.jsonl").read_text().strip()  # nothing sent

@@ -23,12 +23,10 @@ pytestmark = pytest.mark.slow  # subprocess console scripts / re-simulation
 
 
 @pytest.mark.parametrize("arm", sorted(ARMS))
-def test_lerobot_rollout_with_the_corrector_executes_the_corrected_targets(tmp_path, arm):
+def test_lerobot_rollout_with_the_corrector_executes_the_corrected_targets(tmp_path, arm, random_policy):
     robot, block, target = ARMS[arm]
     policy = tmp_path / f"act_{arm}"
-    from backbones import make_random_policy
-
-    make_random_policy.make(policy, inputs=arm)
+    random_policy(policy, inputs=arm)
     rollout = str(Path(sys.executable).parent / "lerobot-rollout")
     logs = {}
     for name, flags in (("corrected", ["--policy.postprocess=physvla", f"--physvla.arm={arm}",

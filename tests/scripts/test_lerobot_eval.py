@@ -28,13 +28,11 @@ def run(args: list[str], env_extra: dict | None = None, timeout: int = 600) -> s
 
 
 @pytest.fixture(scope="module")
-def policies(tmp_path_factory):
+def policies(tmp_path_factory, random_policy):
     d = tmp_path_factory.mktemp("policies")
     out = {}
-    from backbones import make_random_policy
-
     for inputs in ("state", "image"):
-        make_random_policy.make(d / inputs, inputs=inputs)  # in process: lerobot's factory, as the script does
+        random_policy(d / inputs, inputs=inputs)  # in process: lerobot's factory, as the script does
         out[inputs] = d / inputs
     return out
 
