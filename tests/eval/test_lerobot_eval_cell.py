@@ -67,3 +67,24 @@ def test_episode_k_is_paired_with_the_stored_episode_of_init_state_first_plus_k(
     with pytest.raises(SystemExit, match="the study's is"):
         cell.pairs(study, "original", "object_act_camera_weak", "shipped default", Path("other"))
 
+
+
+def test_the_committed_cell_is_its_records_report_and_every_episode_has_its_harness_pair(study):
+    """eval/results/lerobot_eval_cell: the README is report(records.json); the records hold the whole cell (every
+    configuration x task x init state once), each lerobot-eval episode beside the harness episode the study stored."""
+    d = ROOT / "eval" / "results" / "lerobot_eval_cell"
+    records = json.loads((d / "records.json").read_text())
+    assert (d / "README.md").read_text() == cell.report(records)
+    assert records["study"] == study.name
+    b = study.blocks[records["block"]]
+    rows = records["pairs"]
+    want = {(c, t, s) for c in records["configs"] for t in b.tasks for s in b.seeds}
+    assert len(rows) == len(want) == 2 * 50 and {(r["config"], r["task_id"], r["seed"]) for r in rows} == want
+    for config in records["configs"]:
+        h = study.config_hash(config, b.scene)
+        stored = {(r["task_id"], r["seed"]): r for r in Store(study.data[0]).rows
+                  if r["backbone"] == records["backbone"] and r["scene"] == b.scene and r["config"] == h}
+        for r in rows:
+            if r["config"] == config:
+                s = stored[(r["task_id"], r["seed"])]
+                assert r["harness"] == {"success": s["success"], "steps": s["steps"], "changed": s["changed_fraction"]}
