@@ -644,7 +644,8 @@ PRESETS["smooth"] = PRESETS["default"].replace(lowpass="adaptive", lowpass_space
 # confirmed on the camera ACTs, LIBERO-Object's position perturbations, its original suite and a distractor), and the
 # carry to the target, which carries an object the policy lowers 10 cm or more from the target over it
 # (docs/decisions/30-carry-to-target.md: confirmed on LIBERO-Spatial's camera ACTs, its swap, its original suite, a
-# distractor and LIBERO-Object's swap). Opt-in: never measured on the state policies, MetaWorld or an arm.
+# distractor and LIBERO-Object's swap). Opt-in: a policy that closes early, far from the object, can lose to it
+# (LIBERO's faulty state expert, 37 of 122 pairs against the default: docs/decisions/32-shift-default.md).
 PRESETS["shift"] = PRESETS["default"].replace(approach_pull_m=0.10, phase_caps=(1.0, 1.0, 1.0, 1.0),
                                               alpha_transport=0.0, lift_bias_m=0.0, carry_far_m=0.10)
 DEFAULT_PRESET = "default"
