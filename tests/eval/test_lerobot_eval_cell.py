@@ -68,7 +68,6 @@ def test_episode_k_is_paired_with_the_stored_episode_of_init_state_first_plus_k(
         cell.pairs(study, "original", "object_act_camera_weak", "shipped default", Path("other"))
 
 
-
 def test_the_committed_cell_is_its_records_report_and_every_episode_has_its_harness_pair(study):
     """eval/results/lerobot_eval_cell: the README is report(records.json); the records hold the whole cell (every
     configuration x task x init state once), each lerobot-eval episode beside the harness episode the study stored."""
