@@ -124,6 +124,50 @@ def test_a_stalled_descent_closes_where_it_stalls_only_with_the_option():
     assert PhysVLAConfig.from_dict({"version": 4, "cap": 0.05}).approach_pull_stall_steps == 0
 
 
+def _run_taken_back(cfg, near_m, steps=60, floor=0.032, start_m=0.2):
+    """A policy that closes start_m from the object (engaging the pull), opens for three steps, and closes again whenever
+    the hand is within near_m of the object, always pushing down; fingers resting `floor` m over the object's origin (the pull's close
+    never comes). (outputs, the policy's gripper commands, hands relative to the object)."""
+    c = Corrector(cfg, batch_size=1)
+    eef, obj = np.array([start_m, 0.0, REST_Z + 0.05]), np.array([0.0, 0.0, REST_Z])
+    outs, grips, hands = [], [], []
+    for t in range(steps):
+        grip = 1.0 if t < 3 or (t >= 6 and np.linalg.norm((eef - obj)[:2]) < near_m) else -1.0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            out = c(np.array([[0.0, 0.0, -0.1, 0, 0, 0, grip]]), _state(t, eef, obj))[0]
+        outs.append(out)
+        grips.append(grip)
+        hands.append(eef - obj)
+        eef = eef + out[:3] * SCALE
+        eef[2] = max(eef[2], obj[2] + floor)
+    return np.array(outs), np.array(grips), np.array(hands)
+
+
+def test_a_policy_that_takes_its_far_close_back_and_closes_at_the_object_has_the_hand_back_only_with_the_option():
+    """docs/decisions/32-shift-default.md's failure: the pulled hand stalls 3.2 cm over the object and the policy's own
+    later close there is held open to the end. With approach_pull_handback the pull lets go at that close: the
+    policy's descent and close come through. A re-close 10 cm or more away, and a policy that never opens, stay
+    pulled as without the option."""
+    held, grips, _ = _run_taken_back(ON, near_m=0.02)
+    assert (grips[10:] > 0).all() and not (held[:, 6] > 0).any()  # without it: held open to the end
+    back, _, hands = _run_taken_back(ON.replace(approach_pull_handback=True), near_m=0.02)
+    k = next(t for t in range(3, len(grips)) if grips[t] > 0)  # the policy's second close
+    np.testing.assert_array_equal(back[:k], held[:k])  # pulled alike until then
+    assert back[k][2] == -0.1 and back[k][0] == 0  # from its close on, the policy's own descent
+    assert (back[k:, 6] > 0).any() and back[-1][6] > 0  # and its close: the gripper shuts at the object
+    assert np.linalg.norm(hands[k][:2]) < 0.02
+    far, grips, hands = _run_taken_back(ON, near_m=0.5, start_m=0.45)  # closes again 10 cm or more away: still pulled
+    assert grips[6] > 0 and np.linalg.norm(hands[6][:2]) >= ON.approach_pull_m
+    far_on, *_ = _run_taken_back(ON.replace(approach_pull_handback=True), near_m=0.5, start_m=0.45)
+    np.testing.assert_array_equal(far_on, far)
+    keeps, *_ = _run(ON.replace(approach_pull_handback=True), (0.2, 0.0), steps=200)  # never opens: pulled
+    plain, *_ = _run(ON, (0.2, 0.0), steps=200)
+    np.testing.assert_array_equal(keeps, plain)
+    assert not any(p.approach_pull_handback for p in PRESETS.values())
+    assert PhysVLAConfig.from_dict({"version": 5, "cap": 0.05}).approach_pull_handback is False
+
+
 def test_a_missed_grasp_goes_round_again():
     outs, phases, _, _ = _run(ON, (0.2, 0.0), steps=160, follow=False)
     assert Phase.TRANSPORT not in phases

@@ -25,6 +25,11 @@ the hand to the object and the object over the target:
                origin, the gripper closed
     in the place phase the place corrections and the policy take over (the policy's open is its release; the
     release veto holds one that would miss). Rotation channels stay the policy's. scale = metres per action unit.
+    handback  with approach_pull_handback, a policy that opens after the close that engaged the pull and then closes
+              again nearer than approach_pull_m (the open-to-close change there), before the pull's own close, has
+              the hand back: the pull lets go and the
+              policy's close is the approach veto's business, as if it had never closed far (an early close that
+              the policy takes back, then its grasp at the object)
 
 A policy that closes near the object (rho < approach_pull_m, the approach veto's business) is never pulled, so a
 competent one on the scenes it learned is left alone: the distance is set above the largest miss a policy aiming at
@@ -41,12 +46,13 @@ from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED,
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT
 
 # the close's distance from the object that engages the pull, m; step gain; the stalled descent's steps (0: off)
-PARAMS = ("PULL_FAR_M", "PULL_GAIN", "PULL_STALL_STEPS")
+PARAMS = ("PULL_FAR_M", "PULL_GAIN", "PULL_STALL_STEPS", "PULL_HANDBACK")
 # 1.0 while engaged; the stage (0 travel, 1 close, 2 lift, 3 carry); committed steps in the stage (in travel: steps
-# since the descent last came STALL_DZ_M lower); the hand's height then, m
-MEMORY = (("PULL_ON", 1), ("PULL_STAGE", 1), ("PULL_STEPS", 1), ("PULL_LOW", 1))
-PULL_FAR_M, PULL_GAIN, PULL_STALL_STEPS = slots.params(__file__)
-PULL_ON, PULL_STAGE, PULL_STEPS, PULL_LOW = slots.memory(__file__)
+# since the descent last came STALL_DZ_M lower); the hand's height then, m; 1.0 once the policy has opened since the
+# close that engaged the pull
+MEMORY = (("PULL_ON", 1), ("PULL_STAGE", 1), ("PULL_STEPS", 1), ("PULL_LOW", 1), ("PULL_OPENED", 1))
+PULL_FAR_M, PULL_GAIN, PULL_STALL_STEPS, PULL_HANDBACK = slots.params(__file__)
+PULL_ON, PULL_STAGE, PULL_STEPS, PULL_LOW, PULL_OPENED = slots.memory(__file__)
 CLEAR_M = 0.12  # the travel height of the hand above the object's origin, m
 GRASP_H_M = 0.01  # the hand's height above the object's origin where it closes, m
 NEAR_M = 0.01  # horizontal distance from the object within which the hand descends, m
@@ -73,15 +79,25 @@ def approach_pull(a_raw, a_phys, idx, geo, p, mem, commit):
     dx, dy = geo[OBJ] - geo[EEF], geo[OBJ + 1] - geo[EEF + 1]
     rho = (dx * dx + dy * dy) ** 0.5
     on = mem[PULL_ON] > 0.5
-    if not on and g >= 0 and rho >= p[PULL_FAR_M] and p[POSE_ERROR_M] < NEAR_M:
-        c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])
-        on = (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0  # the policy closes, far from the object
-        if on and commit:
+    c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])
+    closing = g >= 0 and (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0  # the policy commands a close
+    if not on and closing and rho >= p[PULL_FAR_M] and p[POSE_ERROR_M] < NEAR_M:  # a close far from the object
+        on = True
+        if commit:
             mem[PULL_ON], mem[PULL_STAGE], mem[PULL_STEPS], mem[PULL_LOW] = 1.0, 0.0, 0.0, FAR_UP_M
+            mem[PULL_OPENED] = 0.0
     if not on:
         return
     h = geo[EEF + 2] - geo[OBJ + 2]
     stage = mem[PULL_STAGE]
+    if p[PULL_HANDBACK] > 0.0 and stage < 0.5 and g >= 0:  # handback (module doc): before the pull's own close
+        if not closing or rho >= p[PULL_FAR_M]:
+            if commit:  # opened; or closed far again, which the pull answers as it answered the first
+                mem[PULL_OPENED] = 0.0 if closing else 1.0
+        elif mem[PULL_OPENED] > 0.5:  # opened, then closes again near: the policy's own grasp
+            if commit:
+                mem[PULL_ON], mem[PULL_STAGE], mem[PULL_STEPS], mem[PULL_OPENED] = 0.0, 0.0, 0.0, 0.0
+            return
     if stage > 2.5:  # carry: the held object over the target
         a_phys[idx[X]] = _toward(geo[TGT] - geo[OBJ], p)
         a_phys[idx[Y]] = _toward(geo[TGT + 1] - geo[OBJ + 1], p)
@@ -149,7 +165,8 @@ POSE = "aims the hand at the object's pose: engages only while pose_error_m < 1 
 CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                         values={"PULL_FAR_M": lambda c, lay: c.approach_pull_m,
                                 "PULL_GAIN": lambda c, lay: lay.step_gain,
-                                "PULL_STALL_STEPS": lambda c, lay: float(c.approach_pull_stall_steps)},
+                                "PULL_STALL_STEPS": lambda c, lay: float(c.approach_pull_stall_steps),
+                                "PULL_HANDBACK": lambda c, lay: float(c.approach_pull_handback)},
                         on=lambda c: c.approach_pull_m > 0.0, commit=approach_pull_commit,
                         fields=(Field("approach_pull_m", float, 0.0, 0.0, "a policy that closes this far (m, "
                                       "horizontally) or farther from the object is taken there: the hand rises, "
@@ -159,5 +176,9 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                                       "that has come no lower (by 2 mm) for this many control steps, 6 cm or less "
                                       "above the object's origin, closes where it is; 0: off (the close waits for "
                                       "1 cm)", experimental="failed its design rule, in no preset: "
-                                      "docs/decisions/31-pull-stall-close.md")),
+                                      "docs/decisions/31-pull-stall-close.md"),
+                                Field("approach_pull_handback", bool, False, False, "a policy that opens after the "
+                                      "close that engaged the approach pull and closes again nearer than "
+                                      "approach_pull_m, before the pull's own close, has the hand back (its close "
+                                      "is then the approach veto's business); False: the pull keeps the hand")),
                         check=lambda c: _check(c), pose=POSE)
