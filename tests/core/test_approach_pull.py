@@ -168,6 +168,30 @@ def test_a_policy_that_takes_its_far_close_back_and_closes_at_the_object_has_the
     assert PhysVLAConfig.from_dict({"version": 5, "cap": 0.05}).approach_pull_handback is False
 
 
+def test_a_policy_that_opens_near_the_object_has_the_hand_back_with_the_open_handback():
+    """approach_pull_open_handback: the policy's open, nearer than approach_pull_m and before the pull's own close,
+    ends the pull there (from then on the action is its own); an open 10 cm or more away, and a policy that never
+    opens, stay pulled as without it."""
+    held, grips, hands = _run_taken_back(ON, near_m=0.02)
+    cfg = ON.replace(approach_pull_open_handback=True)
+    back, _, back_hands = _run_taken_back(cfg, near_m=0.02)
+    k = next(t for t in range(3, len(grips)) if grips[t] < 0 and np.linalg.norm(hands[t][:2]) < ON.approach_pull_m)
+    np.testing.assert_array_equal(back[:k], held[:k])  # pulled alike until the policy opens near the object
+    assert back[k][2] == -0.1 and back[k][0] == 0 and back[k][6] == -1.0  # from then on, the policy's own action
+    assert (back[k:, :2] == 0).all() and np.linalg.norm(back_hands[-1][:2]) > 0.02  # not pulled again: left where
+    assert (held[k:, :2] != 0).any()  # the policy took it (without: pulled on over the object)
+    far_open = ON.replace(approach_pull_open_handback=True)
+    plain, *_ = _run(ON, (0.45, 0.0), steps=12, follow=False)  # never opens: pulled as without it
+    keeps, *_ = _run(far_open, (0.45, 0.0), steps=12, follow=False)
+    np.testing.assert_array_equal(keeps, plain)
+    far, far_grips, far_hands = _run_taken_back(ON, near_m=0.0, start_m=0.45, steps=6)  # opens 30 cm or more away
+    assert (far_grips[3:6] < 0).all() and (np.linalg.norm(far_hands[3:6, :2], axis=1) >= ON.approach_pull_m).all()
+    far_on, *_ = _run_taken_back(far_open, near_m=0.0, start_m=0.45, steps=6)
+    np.testing.assert_array_equal(far_on, far)
+    assert not any(p.approach_pull_open_handback for p in PRESETS.values())
+    assert PhysVLAConfig.from_dict({"version": 6, "cap": 0.05}).approach_pull_open_handback is False
+
+
 def test_a_missed_grasp_goes_round_again():
     outs, phases, _, _ = _run(ON, (0.2, 0.0), steps=160, follow=False)
     assert Phase.TRANSPORT not in phases

@@ -29,7 +29,9 @@ the hand to the object and the object over the target:
               again nearer than approach_pull_m (the open-to-close change there), before the pull's own close, has
               the hand back: the pull lets go and the
               policy's close is the approach veto's business, as if it had never closed far (an early close that
-              the policy takes back, then its grasp at the object)
+              the policy takes back, then its grasp at the object); with approach_pull_open_handback, the policy's
+              open itself, nearer than approach_pull_m before the pull's own close, hands the hand back (it goes
+              on to its own grasp point)
 
 A policy that closes near the object (rho < approach_pull_m, the approach veto's business) is never pulled, so a
 competent one on the scenes it learned is left alone: the distance is set above the largest miss a policy aiming at
@@ -46,12 +48,12 @@ from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED,
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT
 
 # the close's distance from the object that engages the pull, m; step gain; the stalled descent's steps (0: off)
-PARAMS = ("PULL_FAR_M", "PULL_GAIN", "PULL_STALL_STEPS", "PULL_HANDBACK")
+PARAMS = ("PULL_FAR_M", "PULL_GAIN", "PULL_STALL_STEPS", "PULL_HANDBACK", "PULL_OPEN_HANDBACK")
 # 1.0 while engaged; the stage (0 travel, 1 close, 2 lift, 3 carry); committed steps in the stage (in travel: steps
 # since the descent last came STALL_DZ_M lower); the hand's height then, m; 1.0 once the policy has opened since the
 # close that engaged the pull
 MEMORY = (("PULL_ON", 1), ("PULL_STAGE", 1), ("PULL_STEPS", 1), ("PULL_LOW", 1), ("PULL_OPENED", 1))
-PULL_FAR_M, PULL_GAIN, PULL_STALL_STEPS, PULL_HANDBACK = slots.params(__file__)
+PULL_FAR_M, PULL_GAIN, PULL_STALL_STEPS, PULL_HANDBACK, PULL_OPEN_HANDBACK = slots.params(__file__)
 PULL_ON, PULL_STAGE, PULL_STEPS, PULL_LOW, PULL_OPENED = slots.memory(__file__)
 CLEAR_M = 0.12  # the travel height of the hand above the object's origin, m
 GRASP_H_M = 0.01  # the hand's height above the object's origin where it closes, m
@@ -90,6 +92,10 @@ def approach_pull(a_raw, a_phys, idx, geo, p, mem, commit):
         return
     h = geo[EEF + 2] - geo[OBJ + 2]
     stage = mem[PULL_STAGE]
+    if p[PULL_OPEN_HANDBACK] > 0.0 and stage < 0.5 and g >= 0 and not closing and rho < p[PULL_FAR_M]:
+        if commit:  # the policy opens near the object, before the pull's own close: it has the hand back
+            mem[PULL_ON], mem[PULL_STAGE], mem[PULL_STEPS], mem[PULL_OPENED] = 0.0, 0.0, 0.0, 0.0
+        return
     if p[PULL_HANDBACK] > 0.0 and stage < 0.5 and g >= 0:  # handback (module doc): before the pull's own close
         if not closing or rho >= p[PULL_FAR_M]:
             if commit:  # opened; or closed far again, which the pull answers as it answered the first
@@ -166,7 +172,8 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                         values={"PULL_FAR_M": lambda c, lay: c.approach_pull_m,
                                 "PULL_GAIN": lambda c, lay: lay.step_gain,
                                 "PULL_STALL_STEPS": lambda c, lay: float(c.approach_pull_stall_steps),
-                                "PULL_HANDBACK": lambda c, lay: float(c.approach_pull_handback)},
+                                "PULL_HANDBACK": lambda c, lay: float(c.approach_pull_handback),
+                                "PULL_OPEN_HANDBACK": lambda c, lay: float(c.approach_pull_open_handback)},
                         on=lambda c: c.approach_pull_m > 0.0, commit=approach_pull_commit,
                         fields=(Field("approach_pull_m", float, 0.0, 0.0, "a policy that closes this far (m, "
                                       "horizontally) or farther from the object is taken there: the hand rises, "
@@ -180,5 +187,9 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                                 Field("approach_pull_handback", bool, False, False, "a policy that opens after the "
                                       "close that engaged the approach pull and closes again nearer than "
                                       "approach_pull_m, before the pull's own close, has the hand back (its close "
-                                      "is then the approach veto's business); False: the pull keeps the hand")),
+                                      "is then the approach veto's business); False: the pull keeps the hand"),
+                                Field("approach_pull_open_handback", bool, False, False, "a policy that opens, "
+                                      "after the close that engaged the approach pull, nearer than approach_pull_m "
+                                      "from the object and before the pull's own close, has the hand back (it goes "
+                                      "on to its own grasp); False: the pull keeps the hand")),
                         check=lambda c: _check(c), pose=POSE)
