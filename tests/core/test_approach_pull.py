@@ -192,6 +192,34 @@ def test_a_policy_that_opens_near_the_object_has_the_hand_back_with_the_open_han
     assert PhysVLAConfig.from_dict({"version": 6, "cap": 0.05}).approach_pull_open_handback is False
 
 
+def test_a_close_on_the_way_to_the_object_is_left_to_the_veto_with_the_heading_option():
+    """approach_pull_heading_u = 0.3: a policy that closes 20 cm from the object while it commands the hand toward it
+    at 0.3 action units or more is not pulled (the shipped default's outputs, step for step); one that closes while
+    it stands still, or moves away, is pulled as without the option."""
+    heading = ON.replace(approach_pull_heading_u=0.3)
+
+    def run(cfg, vx, steps=8):
+        c = Corrector(cfg, batch_size=1)
+        eef, obj, outs = np.array([0.2, 0.0, REST_Z + 0.05]), np.array([0.0, 0.0, REST_Z]), []
+        for t in range(steps):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                outs.append(c(np.array([[vx, 0.0, -0.1, 0, 0, 0, 1.0]]), _state(t, eef, obj))[0])
+            eef = eef + np.array([vx, 0.0, 0.0]) * 0.004  # the hand comes 4 mm a step at full speed: still far
+        return np.array(outs)
+
+    toward = run(heading, -0.5)  # toward the object (at -x from the hand) at 0.5 units
+    np.testing.assert_array_equal(toward, run(PRESETS["default"], -0.5))
+    assert (toward[:, 6] < 0).all() and (toward[:, 0] == -0.5).all()  # the veto holds it open; the policy's path
+    for vx in (0.0, -0.2, 0.5):  # standing, slower than 0.3 units, away: pulled
+        np.testing.assert_array_equal(run(heading, vx), run(ON, vx))
+        assert run(heading, vx)[0][2] > 0  # the pull's rise
+    with pytest.raises(ValueError, match="approach_pull_heading_u"):
+        PhysVLAConfig(approach_pull_heading_u=-0.1)
+    assert all(p.approach_pull_heading_u == 0.0 for p in PRESETS.values())
+    assert PhysVLAConfig.from_dict({"version": 7, "cap": 0.05}).approach_pull_heading_u == 0.0
+
+
 def test_a_missed_grasp_goes_round_again():
     outs, phases, _, _ = _run(ON, (0.2, 0.0), steps=160, follow=False)
     assert Phase.TRANSPORT not in phases

@@ -32,6 +32,10 @@ the hand to the object and the object over the target:
               the policy takes back, then its grasp at the object); with approach_pull_open_handback, the policy's
               open itself, nearer than approach_pull_m before the pull's own close, hands the hand back (it goes
               on to its own grasp point)
+    heading   with approach_pull_heading_u = u > 0, a far close does not engage the pull while the policy commands the
+              hand toward the object at u action units or more (a_xy . (p_obj - p_eef)_xy / rho >= u): a policy on
+              its way to the object that closes early is left to the approach veto; one that closes where it
+              stopped, away from the object, is pulled
 
 A policy that closes near the object (rho < approach_pull_m, the approach veto's business) is never pulled, so a
 competent one on the scenes it learned is left alone: the distance is set above the largest miss a policy aiming at
@@ -48,12 +52,12 @@ from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED,
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT
 
 # the close's distance from the object that engages the pull, m; step gain; the stalled descent's steps (0: off)
-PARAMS = ("PULL_FAR_M", "PULL_GAIN", "PULL_STALL_STEPS", "PULL_HANDBACK", "PULL_OPEN_HANDBACK")
+PARAMS = ("PULL_FAR_M", "PULL_GAIN", "PULL_STALL_STEPS", "PULL_HANDBACK", "PULL_OPEN_HANDBACK", "PULL_HEADING_U")
 # 1.0 while engaged; the stage (0 travel, 1 close, 2 lift, 3 carry); committed steps in the stage (in travel: steps
 # since the descent last came STALL_DZ_M lower); the hand's height then, m; 1.0 once the policy has opened since the
 # close that engaged the pull
 MEMORY = (("PULL_ON", 1), ("PULL_STAGE", 1), ("PULL_STEPS", 1), ("PULL_LOW", 1), ("PULL_OPENED", 1))
-PULL_FAR_M, PULL_GAIN, PULL_STALL_STEPS, PULL_HANDBACK, PULL_OPEN_HANDBACK = slots.params(__file__)
+PULL_FAR_M, PULL_GAIN, PULL_STALL_STEPS, PULL_HANDBACK, PULL_OPEN_HANDBACK, PULL_HEADING_U = slots.params(__file__)
 PULL_ON, PULL_STAGE, PULL_STEPS, PULL_LOW, PULL_OPENED = slots.memory(__file__)
 CLEAR_M = 0.12  # the travel height of the hand above the object's origin, m
 GRASP_H_M = 0.01  # the hand's height above the object's origin where it closes, m
@@ -84,7 +88,9 @@ def approach_pull(a_raw, a_phys, idx, geo, p, mem, commit):
     c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])
     closing = g >= 0 and (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0  # the policy commands a close
     if not on and closing and rho >= p[PULL_FAR_M] and p[POSE_ERROR_M] < NEAR_M:  # a close far from the object
-        on = True
+        toward = (a_raw[idx[X]] * dx + a_raw[idx[Y]] * dy) / rho  # the policy's command toward the object, units
+        on = p[PULL_HEADING_U] <= 0.0 or not toward >= p[PULL_HEADING_U]  # heading (module doc); NaN: engage
+    if on and mem[PULL_ON] < 0.5:
         if commit:
             mem[PULL_ON], mem[PULL_STAGE], mem[PULL_STEPS], mem[PULL_LOW] = 1.0, 0.0, 0.0, FAR_UP_M
             mem[PULL_OPENED] = 0.0
@@ -162,6 +168,9 @@ def _check(c) -> None:
                          "absolute targets: leave approach_pull_m at 0")
     if c.approach_pull_m > 0.0:
         needs_authority(c, "approach_pull_m", (APPROACH, GRASP, TRANSPORT), "leave approach_pull_m at 0")
+    if not c.approach_pull_heading_u >= 0.0:
+        raise ValueError("physvla: approach_pull_heading_u is a speed in action units (0: off); got "
+                         f"{c.approach_pull_heading_u}")
     if c.approach_pull_stall_steps < 0:
         raise ValueError("physvla: approach_pull_stall_steps is a count of control steps (0: off); got "
                          f"{c.approach_pull_stall_steps}")
@@ -173,7 +182,8 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                                 "PULL_GAIN": lambda c, lay: lay.step_gain,
                                 "PULL_STALL_STEPS": lambda c, lay: float(c.approach_pull_stall_steps),
                                 "PULL_HANDBACK": lambda c, lay: float(c.approach_pull_handback),
-                                "PULL_OPEN_HANDBACK": lambda c, lay: float(c.approach_pull_open_handback)},
+                                "PULL_OPEN_HANDBACK": lambda c, lay: float(c.approach_pull_open_handback),
+                                "PULL_HEADING_U": lambda c, lay: c.approach_pull_heading_u},
                         on=lambda c: c.approach_pull_m > 0.0, commit=approach_pull_commit,
                         fields=(Field("approach_pull_m", float, 0.0, 0.0, "a policy that closes this far (m, "
                                       "horizontally) or farther from the object is taken there: the hand rises, "
@@ -187,9 +197,17 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                                 Field("approach_pull_handback", bool, False, False, "a policy that opens after the "
                                       "close that engaged the approach pull and closes again nearer than "
                                       "approach_pull_m, before the pull's own close, has the hand back (its close "
-                                      "is then the approach veto's business); False: the pull keeps the hand"),
+                                      "is then the approach veto's business); False: the pull keeps the hand",
+                                      experimental="failed its design rule, in no preset: "
+                                      "docs/decisions/33-pull-handback.md"),
                                 Field("approach_pull_open_handback", bool, False, False, "a policy that opens, "
                                       "after the close that engaged the approach pull, nearer than approach_pull_m "
                                       "from the object and before the pull's own close, has the hand back (it goes "
-                                      "on to its own grasp); False: the pull keeps the hand")),
+                                      "on to its own grasp); False: the pull keeps the hand",
+                                      experimental="failed its design rule, in no preset: "
+                                      "docs/decisions/33-pull-handback.md"),
+                                Field("approach_pull_heading_u", float, 0.0, 0.0, "a far close does not engage the "
+                                      "approach pull while the policy commands the hand toward the object at this "
+                                      "speed or more (action units): a policy on its way that closes early is left "
+                                      "to the approach veto; 0: off")),
                         check=lambda c: _check(c), pose=POSE)
