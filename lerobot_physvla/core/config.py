@@ -288,7 +288,7 @@ PAPER: dict = {f.name: f.paper for f in FIELDS if f.paper != f.default}
 # from_dict brings a saved dict up one version at a time (UPGRADES[v]: its renamed fields, then the fields it lacks
 # at the value that keeps it acting as it did), then fills what is still unnamed from the shipped default. Adding a
 # field means a new version: CONFIG_VERSION + 1 and an UPGRADES entry giving the field's value from before it.
-CONFIG_VERSION = 8
+CONFIG_VERSION = 9
 SAVED_V0 = frozenset({"alpha_temporal", "alpha_transport", "beta", "cap", "chunk", "d_thresh_m", "delta_grasp_m",
                       "dls_damping", "el_mode", "eps_nm", "grasp_offset_m", "gripper_rule", "h_lift_m", "layout",
                       "lift_bias_m", "mode", "r0_nm", "weighting"})
@@ -298,13 +298,15 @@ ALIASES: dict[str, str] = {"redirect_tol_m": "place_tol_m", "redirect_gain": "pl
 # renames, and every field added after the paper's main text at its paper value (the option off) as before it existed.
 # Version 1 -> 2: approach_pull_m, at 0 (off) as before it existed; 2 -> 3: centre_guide_straddle, off; 3 -> 4:
 # carry_far_m, at 0 (off); 4 -> 5: approach_pull_stall_steps, at 0 (off); 5 -> 6: approach_pull_handback, off; 6 -> 7:
-# approach_pull_open_handback, off; 7 -> 8: approach_pull_heading_u, at 0 (off).
+# approach_pull_open_handback, off; 7 -> 8: approach_pull_heading_u, at 0 (off);
+# 8 -> 9: carry_clear_m, at 0 (off).
 UPGRADES: dict[int, tuple[dict, dict]] = {0: (ALIASES, PAPER), 1: ({}, {"approach_pull_m": 0.0}),
                                           2: ({}, {"centre_guide_straddle": False}), 3: ({}, {"carry_far_m": 0.0}),
                                           4: ({}, {"approach_pull_stall_steps": 0}),
                                           5: ({}, {"approach_pull_handback": False}),
                                           6: ({}, {"approach_pull_open_handback": False}),
-                                          7: ({}, {"approach_pull_heading_u": 0.0})}
+                                          7: ({}, {"approach_pull_heading_u": 0.0}),
+                                          8: ({}, {"carry_clear_m": 0.0})}
 _WARNED: set = set()
 
 
@@ -396,11 +398,11 @@ class PhysVLAConfig:
     pose_noise_m: float = 0.0
     # approach_pull (core/corrections/approach_pull.py)
     approach_pull_m: float = 0.0
-    approach_pull_heading_u: float = 0.0
     # approach_veto (core/corrections/approach_veto.py)
     close_meets_onset: bool = False
     # carry_to_target (core/corrections/carry_to_target.py)
     carry_far_m: float = 0.0
+    carry_clear_m: float = 0.0
     # centre_guide (core/corrections/centre_guide.py)
     centre_guide: bool = True
     centre_guide_trailing: bool = False
@@ -447,6 +449,7 @@ class PhysVLAConfig:
     approach_pull_stall_steps: int = 0
     approach_pull_handback: bool = False
     approach_pull_open_handback: bool = False
+    approach_pull_heading_u: float = 0.0
     veto_close_lead_s: float = 0.0
     close_meets: bool = False
     centre_guide_once: bool = False

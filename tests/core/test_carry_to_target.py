@@ -5,6 +5,7 @@ lower, a pose error that covers the distance, and every preset are left as they 
 
 from __future__ import annotations
 
+import sys
 import warnings
 
 import numpy as np
@@ -109,3 +110,23 @@ def test_off_in_every_preset_but_shift_and_in_a_file_saved_before_it_and_checked
         PhysVLAConfig(carry_far_m=-0.1)
     with pytest.raises(ValueError, match=r"carry_far_m.*\(1, 1, 1, 1\)"):
         PhysVLAConfig(carry_far_m=0.1)  # the shipped default's transport authority is 0
+
+
+def test_an_object_from_a_shelf_above_the_target_is_carried_clear_of_it_only_with_carry_clear_m(monkeypatch):
+    """The plate 25 cm below the shelf the object was lifted from: the carry's height (15 cm over the plate's origin)
+    would set the object back down on the shelf, far from the plate, where the carry ends (LIBERO-Spatial task 9,
+    traced in eval/studies/shift_heading.toml). With carry_clear_m = 0.05 it stays 5 cm over the shelf until it is
+    over the plate."""
+    monkeypatch.setattr(sys.modules[__name__], "TARGET", np.array([0.0, 0.0, REST_Z - 0.25]))
+    _, _, low = _run(ON, (0.18, 0.05), lift=0.10, steps=60)
+    far = _off_target(low) > ON.place_tol_m
+    assert (low[far][:, 2] - REST_Z).min() == 0.0  # set down on the shelf, off the plate
+    clear = ON.replace(carry_clear_m=0.05)
+    _, _, high = _run(clear, (0.18, 0.05), lift=0.10, steps=60)
+    far = _off_target(high) > ON.place_tol_m
+    assert (high[far][:, 2] - REST_Z).min() >= 0.05 - 0.01  # held clear of the shelf while off the plate
+    assert _off_target(high).min() <= ON.place_tol_m  # and brought over the plate
+    with pytest.raises(ValueError, match="carry_clear_m"):
+        PhysVLAConfig(carry_clear_m=-0.01)
+    assert all(p.carry_clear_m == 0.0 for p in PRESETS.values())
+    assert PhysVLAConfig.from_dict({"version": 8, "cap": 0.05}).carry_clear_m == 0.0

@@ -11,7 +11,8 @@ the release veto has nothing to hold. The state says where the target is; this c
               with n >= carry_far_m + pose_error_m; held until the object is set down (the approach or grasp phase)
     then, k = the layout's step_gain, every command in action units clipped to [-1, 1]:
       carry   n > place_tol_m: a_xy = k (p_tgt - p_obj)_xy / scale, the hand held CARRY_HEIGHT_M above the target's
-              origin, the gripper closed
+              origin (with carry_clear_m = c > 0: never lowering the object below c over where it rested, for an
+              object lifted from a shelf above the target), the gripper closed
       set     once n <= place_tol_m: a_xy as carry, a_z = -k lift / scale (lift = the object's height above its rest,
               m), the gripper closed down to SET_LIFT_M, then open: the corrector sets the object down on the target
     Rotation channels stay the policy's. scale = metres per action unit.
@@ -30,9 +31,11 @@ from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED,
 from lerobot_physvla.core.corrections.place_redirect import PLACE_TOL_M
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT
 
-PARAMS = ("CARRY_FAR_M", "CARRY_GAIN")  # the object's distance from the target that engages it, m; step gain
+# the object's distance from the target that engages it, m; step gain; the least height over its rest it is carried at
+# (m; 0: off)
+PARAMS = ("CARRY_FAR_M", "CARRY_GAIN", "CARRY_CLEAR_M")
 MEMORY = (("CARRY_ON", 1),)  # 1.0 while carrying, 2.0 while setting down, 0.0 off
-CARRY_FAR_M, CARRY_GAIN = slots.params(__file__)
+CARRY_FAR_M, CARRY_GAIN, CARRY_CLEAR_M = slots.params(__file__)
 (CARRY_ON,) = slots.memory(__file__)
 CARRY_HEIGHT_M = 0.15  # the carrying hand's height above the target's origin, m (the approach pull's carry)
 LOWER_U = 0.25  # a z command below -LOWER_U (action units) lowers the object
@@ -73,7 +76,10 @@ def carry_to_target(a_raw, a_phys, idx, geo, p, mem, commit):
         if commit:
             mem[CARRY_ON] = 2.0
     else:
-        a_phys[idx[Z]] = _toward(geo[TGT + 2] + CARRY_HEIGHT_M - geo[EEF + 2], p)
+        dz = geo[TGT + 2] + CARRY_HEIGHT_M - geo[EEF + 2]
+        if p[CARRY_CLEAR_M] > 0.0:
+            dz = max(dz, p[CARRY_CLEAR_M] - geo[LIFT])  # not below carry_clear_m over its rest
+        a_phys[idx[Z]] = _toward(dz, p)
         a_phys[g] = p[GRIPPER_CLOSED]
 
 
@@ -90,15 +96,21 @@ def _check(c) -> None:
     if c.carry_far_m > 0.0 and c.action_layout.absolute:
         raise ValueError("physvla: carry_far_m commands a delta layout's x, y, z; this layout's positions are "
                          "absolute targets: leave carry_far_m at 0")
+    if not c.carry_clear_m >= 0.0:
+        raise ValueError(f"physvla: carry_clear_m is a height in metres (0: off); got {c.carry_clear_m}")
     if c.carry_far_m > 0.0:
         needs_authority(c, "carry_far_m", (TRANSPORT, PLACE), "leave carry_far_m at 0")
 
 
 CORRECTION = Correction("carry_to_target", TRANSPORT, 10, carry_to_target,
                         values={"CARRY_FAR_M": lambda c, lay: c.carry_far_m,
-                                "CARRY_GAIN": lambda c, lay: lay.step_gain},
+                                "CARRY_GAIN": lambda c, lay: lay.step_gain,
+                                "CARRY_CLEAR_M": lambda c, lay: c.carry_clear_m},
                         on=lambda c: c.carry_far_m > 0.0, commit=carry_to_target_commit,
                         fields=(Field("carry_far_m", float, 0.0, 0.0, "in transport, an object the policy lowers (or "
                                       "lets go of) this far (m, horizontally) or farther from the target is carried "
-                                      "over the target instead, 15 cm above it, and set down there; 0: off"),),
+                                      "over the target instead, 15 cm above it, and set down there; 0: off"),
+                                Field("carry_clear_m", float, 0.0, 0.0, "the carry to the target never lowers the "
+                                      "object below this height (m) over where it rested before the lift (an object "
+                                      "lifted from a shelf above the target); 0: off")),
                         check=lambda c: _check(c), pose=POSE)
