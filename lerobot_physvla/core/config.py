@@ -398,6 +398,7 @@ class PhysVLAConfig:
     pose_noise_m: float = 0.0
     # approach_pull (core/corrections/approach_pull.py)
     approach_pull_m: float = 0.0
+    approach_pull_heading_u: float = 0.0
     # approach_veto (core/corrections/approach_veto.py)
     close_meets_onset: bool = False
     # carry_to_target (core/corrections/carry_to_target.py)
@@ -449,7 +450,6 @@ class PhysVLAConfig:
     approach_pull_stall_steps: int = 0
     approach_pull_handback: bool = False
     approach_pull_open_handback: bool = False
-    approach_pull_heading_u: float = 0.0
     veto_close_lead_s: float = 0.0
     close_meets: bool = False
     centre_guide_once: bool = False
@@ -649,15 +649,15 @@ PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), pla
 PRESETS["smooth"] = PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.8,
                                                lowpass_rough="median", lowpass_phases="approach,grasp,place")
 # for a camera policy under object-position shift (LIBERO-PRO): the default + the approach pull, which takes a hand
-# that closes 10 cm or more from the object to it and carries what it lifts over the target, with the transport
-# phase given the authority for the carry and its smoothing the identity (docs/decisions/29-approach-pull.md:
-# confirmed on the camera ACTs, LIBERO-Object's position perturbations, its original suite and a distractor), and the
-# carry to the target, which carries an object the policy lowers 10 cm or more from the target over it
-# (docs/decisions/30-carry-to-target.md: confirmed on LIBERO-Spatial's camera ACTs, its swap, its original suite, a
-# distractor and LIBERO-Object's swap). Opt-in: a policy that closes early, far from the object, can lose to it
-# (LIBERO's faulty state expert, 37 of 122 pairs against the default: docs/decisions/32-shift-default.md).
+# that closes 10 cm or more from the object, standing there (not on its way to it: approach_pull_heading_u), to the
+# object and carries what it lifts over the target, with the transport phase given the authority for the carry and
+# its smoothing the identity (docs/decisions/29-approach-pull.md), and the carry to the target, which carries an
+# object the policy lowers 10 cm or more from the target over it, never lower than 5 cm over where it rested
+# (docs/decisions/30-carry-to-target.md). The heading and the clearance keep it from costing a policy that closes
+# early on its way (docs/decisions/35-shift-heading-clear.md); opt-in: whether it can be the default is not measured.
 PRESETS["shift"] = PRESETS["default"].replace(approach_pull_m=0.10, phase_caps=(1.0, 1.0, 1.0, 1.0),
-                                              alpha_transport=0.0, lift_bias_m=0.0, carry_far_m=0.10)
+                                              alpha_transport=0.0, lift_bias_m=0.0, carry_far_m=0.10,
+                                              approach_pull_heading_u=0.3, carry_clear_m=0.05)
 DEFAULT_PRESET = "default"
 ARM_PRESET = "arm"
 

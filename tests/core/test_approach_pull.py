@@ -216,7 +216,7 @@ def test_a_close_on_the_way_to_the_object_is_left_to_the_veto_with_the_heading_o
         assert run(heading, vx)[0][2] > 0  # the pull's rise
     with pytest.raises(ValueError, match="approach_pull_heading_u"):
         PhysVLAConfig(approach_pull_heading_u=-0.1)
-    assert all(p.approach_pull_heading_u == 0.0 for p in PRESETS.values())
+    assert [n for n, p in PRESETS.items() if p.approach_pull_heading_u != 0.0] == ["shift"]
     assert PhysVLAConfig.from_dict({"version": 7, "cap": 0.05}).approach_pull_heading_u == 0.0
 
 
@@ -232,7 +232,9 @@ def test_off_in_every_preset_but_shift_and_in_a_file_saved_before_it_and_checked
     # shift: the default, the pull's configuration and the carry to the target (tests/core/test_carry_to_target.py)
     assert ON.replace(approach_pull_m=0.0, phase_caps=PRESETS["default"].phase_caps,
                       alpha_transport=PRESETS["default"].alpha_transport,
-                      lift_bias_m=PRESETS["default"].lift_bias_m, carry_far_m=0.0) == PRESETS["default"]
+                      lift_bias_m=PRESETS["default"].lift_bias_m, carry_far_m=0.0, approach_pull_heading_u=0.0,
+                      carry_clear_m=0.0) == PRESETS["default"]
+    assert ON.approach_pull_heading_u == 0.3 and ON.carry_clear_m == 0.05
     assert ON.approach_pull_m == 0.10 and ON.phase_caps == (1.0, 1.0, 1.0, 1.0)
     assert PhysVLAConfig.from_dict({"version": 1, "cap": 0.05}).approach_pull_m == 0.0
     with pytest.raises(ValueError, match="approach_pull_m"):

@@ -198,27 +198,34 @@ def test_the_presets_are_the_configurations_that_were_measured():
 
 
 def test_the_shift_preset_is_the_approach_pull_and_the_carry_their_studies_confirmed():
-    """PRESETS["shift"] is carry_to_target's candidate, whose reference is true_pose_pull's candidate (the same
-    configuration, the carry off), and every rule of both studies' confirmations passes on their stored records (the
-    decisions fixed in the study files)."""
+    """PRESETS["shift"] is shift_heading_clear's candidate: carry_to_target's candidate (whose reference is
+    true_pose_pull's candidate, the carry off) with the pull's heading and the carry's clearance; every rule of the
+    three studies' confirmations passes on their stored records (the decisions fixed in the study files)."""
     pull, carry = Study(study_mod.find("true_pose_pull")), Study(study_mod.find("carry_to_target"))
-    assert carry.config_hash("shift + carry") == config_hash(PRESETS["shift"].to_dict())
+    clear = Study(study_mod.find("shift_heading_clear"))
+    assert clear.config_hash("shift + heading + clear") == config_hash(PRESETS["shift"].to_dict())
+    before = PRESETS["shift"].replace(approach_pull_heading_u=0.0, carry_clear_m=0.0)
+    assert carry.config_hash("shift + carry") == clear.config_hash("shift") == config_hash(before.to_dict())
     assert carry.config_hash("shift") == pull.config_hash("default + approach pull") == config_hash(
-        PRESETS["shift"].replace(carry_far_m=0.0).to_dict())
-    for s, n in ((pull, 2), (carry, 3)):
+        before.replace(carry_far_m=0.0).to_dict())
+    for s, n in ((pull, 2), (carry, 3), (clear, 3)):
         rows = report.Rows(s, run.rows_of(s))
         confirmed = [c for c in s.compares if c.blocks["confirm"]]
         assert len(confirmed) == n, s.name
         assert all(report.compare_verdict(s, rows, c, "confirm") is True for c in confirmed), s.name
+    (design,) = [c for c in clear.compares if c.blocks["design"]]
+    assert report.compare_verdict(clear, report.Rows(clear, run.rows_of(clear)), design, "design") is True
 
 
 def test_shift_stays_opt_in_because_its_libero_comparison_failed_on_the_stored_records():
     """docs/decisions/32-shift-default.md: shift_default's comparison on LIBERO's state policies fails on its stored
-    records (the faulty shape expert far down against the shipped default), so the default is not `shift`, although
-    MetaWorld, as its env runs it, passed every rule (shift_metaworld)."""
+    records (the faulty shape expert far down against the shipped default), so the default is not `shift` (as it was
+    then, before the heading and the clearance: record 35), although MetaWorld, as its env runs it, passed every
+    rule (shift_metaworld)."""
     assert config_hash(PRESETS["default"].to_dict()) != config_hash(PRESETS["shift"].to_dict())
     sd, sm = Study(study_mod.find("shift_default")), Study(study_mod.find("shift_metaworld"))
-    assert sd.config_hash("shift") == config_hash(PRESETS["shift"].to_dict())
+    assert sd.config_hash("shift") == config_hash(
+        PRESETS["shift"].replace(approach_pull_heading_u=0.0, carry_clear_m=0.0).to_dict())
     rows = report.Rows(sd, run.rows_of(sd))
     (libero,) = [c for c in sd.compares if "LIBERO" in c.name]
     assert report.compare_verdict(sd, rows, libero, "confirm") is False

@@ -209,6 +209,5 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                                 Field("approach_pull_heading_u", float, 0.0, 0.0, "a far close does not engage the "
                                       "approach pull while the policy commands the hand toward the object at this "
                                       "speed or more (action units): a policy on its way that closes early is left "
-                                      "to the approach veto; 0: off", experimental="failed its design rule by one pair, in no preset: "
-                                      "docs/decisions/34-pull-heading.md")),
+                                      "to the approach veto; 0: off")),
                         check=lambda c: _check(c), pose=POSE)
