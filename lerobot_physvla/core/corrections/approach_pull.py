@@ -25,13 +25,10 @@ the hand to the object and the object over the target:
                origin, the gripper closed
     in the place phase the place corrections and the policy take over (the policy's open is its release; the
     release veto holds one that would miss). Rotation channels stay the policy's. scale = metres per action unit.
-    handback  with approach_pull_handback, a policy that opens after the close that engaged the pull and then closes
-              again nearer than approach_pull_m (the open-to-close change there), before the pull's own close, has
-              the hand back: the pull lets go and the
-              policy's close is the approach veto's business, as if it had never closed far (an early close that
-              the policy takes back, then its grasp at the object); with approach_pull_open_handback, the policy's
-              open itself, nearer than approach_pull_m before the pull's own close, hands the hand back (it goes
-              on to its own grasp point)
+    handback  (experimental) with approach_pull_handback, a policy that opens after the close that engaged the pull
+              and then closes again nearer than approach_pull_m, before the pull's own close, has the hand back: the
+              pull lets go and that close is the approach veto's business; with approach_pull_open_handback, the
+              policy's open itself, nearer than approach_pull_m before the pull's own close, hands the hand back
     heading   with approach_pull_heading_u = u > 0, a far close does not engage the pull while the policy commands the
               hand toward the object at u action units or more (a_xy . (p_obj - p_eef)_xy / rho >= u): a policy on
               its way to the object that closes early is left to the approach veto; one that closes where it
