@@ -63,7 +63,7 @@ def command(study: Study, block: str, backbone: str, config: str, out: Path, tas
         raise SystemExit(f"lerobot_eval_cell: block {block!r} runs tasks {list(b.tasks)}, not {tasks}")
     if seeds != list(range(seeds[0], seeds[0] + len(seeds))):
         raise SystemExit(f"lerobot_eval_cell: block {block!r}'s init states {seeds} are not consecutive")
-    spec = study.config_specs[config]
+    spec = study.spec(config)
     policy = study.policy_path(backbone).resolve().relative_to(ROOT)
     return [str(LEROBOT_EVAL), f"--policy.path={policy}", "--env.type=libero_physvla", *scene_args(b.scene),
             f"--env.task_ids=[{','.join(str(t) for t in tasks)}]", f"--env.first_init_state={seeds[0]}",

@@ -27,9 +27,10 @@
                                        # the poses from ArUco markers the scene renders (so101_env: the rig of
                                        # sim/marker_scene.py); positions with a bound over pose_error_m refused
 
-    [pinned]                           # fields every configuration takes unless it sets them: a default's
-    centre_guide = false               # options as they stood when the study ran, so a later default leaves
-                                       # its configurations (and their hashes) as they were
+    [pinned]                           # fields every configuration takes unless it (or its preset, apart
+    centre_guide = false               # from the default) sets them: a default's options as they stood when
+                                       # the study ran, so a later default leaves its configurations (and
+                                       # their hashes) as they were
 
     [scene_overrides]                  # fields every configuration takes on one scene
     fetch_pick_place = {layout = "fetch_4d", weighting = "task_space"}
@@ -195,6 +196,20 @@ class Study:
                                    exclude=tuple(self.expand(chk.exclude)) if chk.exclude else (),
                                    cells=tuple(chk.cells))
 
+    def spec(self, name: str) -> dict:
+        """Configuration `name` as its fields are given: its preset first, then [pinned]'s fields, then its own. A
+        pinned field stands for the default's value: where the preset sets that field apart from the default, the
+        preset's value stays."""
+        from lerobot_physvla.core.config import PRESETS
+
+        if name not in self.config_specs:
+            raise SystemExit(f"study {self.name}: unknown configuration {name!r}; declare it under [configs]")
+        own = dict(self.config_specs[name])
+        base = PRESETS.get(own.get("preset") or "default", PRESETS["default"])
+        pinned = {k: v for k, v in self.pinned.items()
+                  if not hasattr(base, k) or getattr(base, k) == getattr(PRESETS["default"], k)}
+        return {**({"preset": own.pop("preset")} if "preset" in own else {}), **pinned, **own}
+
     def config(self, name: str, scene: str = "libero_spatial") -> dict:
         """The configuration `name` as it runs on `scene` (PhysVLAConfig.to_dict())."""
         key = (name, scene)
@@ -205,8 +220,7 @@ class Study:
 
             from lerobot_physvla.sources.perception import PerceptionConfig
 
-            spec = {k: tuple(v) if isinstance(v, list) else v
-                    for k, v in {**self.pinned, **self.config_specs[name]}.items()}
+            spec = {k: tuple(v) if isinstance(v, list) else v for k, v in self.spec(name).items()}
             spec.update(self.scene_overrides.get(scene, {}))
             if isinstance(spec.get("layout"), dict):  # an ActionLayout spelled out (the so101 layout: the env's scale)
                 from lerobot_physvla.core.config import ActionLayout

@@ -19,15 +19,16 @@ CORRECTIONS = ("approach veto", "grasp guidance", "transport EMA + lift", "place
 PHASE_INDEX = {**{name: i for i, name in enumerate(PHASE_NAMES)}, "pass-through": -1}  # phase_timeline's names
 PHASE_COLOURS = ("#dbe9f6", "#fde2c8", "#d9f0d3", "#eadcf0")
 SHORT = {"approach veto": "veto", "grasp guidance": "grasp", "transport EMA + lift": "transport",
-         "place guidance": "place", "branch B": "B", "rim guide": "rim"}
+         "place guidance": "place", "branch B": "B", "approach guides": "guide"}
 
 
 def corrections_by_phase(raw: np.ndarray, corrected: np.ndarray, phase: np.ndarray, layout) -> dict[str, dict]:
     """How often and how much each correction changed the action: per phase, the frames spent in
     it, the frames whose action it changed (the gripper for the approach veto, the position
-    channels otherwise) and the mean largest change on those frames, action units; and the rim
-    guide (rim_guide_m: the position channels in the approach phase). Attribution is by phase and
-    channel: a low-pass acting in a phase (lowpass=adaptive, the smooth preset) counts there too."""
+    channels otherwise) and the mean largest change on those frames, action units; and the approach
+    guides (the rim guide, the centre guide and the approach pull: the position channels in the approach
+    phase). Attribution is by phase and channel: a low-pass acting in a phase (lowpass=adaptive, the smooth
+    preset) counts there too."""
     raw, corrected, phase = np.asarray(raw, float), np.asarray(corrected, float), np.asarray(phase)
     delta = np.abs(corrected - raw) if raw.size else np.zeros((0, layout.dim))
     pos, g = list(layout.pos), layout.gripper
@@ -36,7 +37,7 @@ def corrections_by_phase(raw: np.ndarray, corrected: np.ndarray, phase: np.ndarr
         sel = phase == p
         ch = [g] if p == 0 and g is not None else pos
         out[name] = _changed(delta, sel, ch)
-    out["rim guide"] = _changed(delta, phase == 0, pos)
+    out["approach guides"] = _changed(delta, phase == 0, pos)
     return out
 
 

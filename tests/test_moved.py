@@ -96,19 +96,20 @@ def test_the_committed_preset_files_hold_the_presets_of_this_code():
 def test_pipelines_saved_before_the_defaults_changed_load_through_lerobot():
     """lerobot's own loaders rebuild the saved steps (tests/fixtures/saved_before_0_2) with the same
     configurations they were saved with (their distances fixed: geometry came later; the release assist within its
-    tolerance alone: release_assist_error_k came later; no centre guide: it joined the default later)."""
+    tolerance alone: release_assist_error_k came later; no centre guide, approach pull or carry: they joined the
+    default later)."""
     from lerobot.processor import PolicyProcessorPipeline, RobotProcessorPipeline
     from lerobot.processor.converters import (policy_action_to_transition, robot_action_observation_to_transition,
                                               transition_to_policy_action, transition_to_robot_action)
 
-    from lerobot_physvla.core.config import PRESETS, PhysVLAConfig
+    from lerobot_physvla.core.config import BEFORE_PULL, PRESETS, PhysVLAConfig
 
     saved = ROOT / "tests/fixtures/saved_before_0_2"
     for name in ("default", "smooth", "paper"):
         p = PolicyProcessorPipeline.from_pretrained(saved / f"preset_{name}", config_filename="policy_postprocessor.json",
                                                     to_transition=policy_action_to_transition,
                                                     to_output=transition_to_policy_action)
-        assert p.steps[-1].cfg == PRESETS[name].replace(**BEFORE), name
+        assert p.steps[-1].cfg == PRESETS[name].replace(**BEFORE, **(BEFORE_PULL if name == "default" else {})), name
     r = RobotProcessorPipeline.from_pretrained(saved / "robot_arm_so101", config_filename="physvla_robot_processor.json",
                                                to_transition=robot_action_observation_to_transition,
                                                to_output=transition_to_robot_action)

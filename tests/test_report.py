@@ -19,10 +19,10 @@ def test_corrections_are_attributed_to_their_phase():
     assert c["approach veto"] == {"frames_in_phase": 3, "frames_changed": 2, "mean_abs_change": 2.0}
     assert c["place guidance"] == {"frames_in_phase": 2, "frames_changed": 1, "mean_abs_change": 0.3}
     assert c["grasp guidance"]["frames_changed"] == c["transport EMA + lift"]["frames_changed"] == 0
-    assert c["rim guide"]["frames_changed"] == 0  # the approach's changes were the gripper's
+    assert c["approach guides"]["frames_changed"] == 0  # the approach's changes were the gripper's
     cor[2, 1] = -0.4  # approach: the rim guide moved y
     c = report.corrections_by_phase(raw, cor, phase, LIBERO_OSC_POSE)
-    assert c["rim guide"] == {"frames_in_phase": 3, "frames_changed": 1, "mean_abs_change": 0.4}
+    assert c["approach guides"] == {"frames_in_phase": 3, "frames_changed": 1, "mean_abs_change": 0.4}
     assert c["approach veto"]["frames_changed"] == 2
 
 

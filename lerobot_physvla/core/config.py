@@ -202,7 +202,7 @@ CORE_FIELDS: tuple = (
     )),
     ("the blender (eq. 2)", (
         Field("cap", float, 0.05, 0.05, "the authority c of the corrected action"),
-        Field("phase_caps", tuple[float, ...], (1.0, 1.0, 0.0, 1.0), (), "the authority per phase (approach, grasp, "
+        Field("phase_caps", tuple[float, ...], (1.0, 1.0, 1.0, 1.0), (), "the authority per phase (approach, grasp, "
               "transport, place), in place of cap; () = cap in every phase"),
         Field("chunk_phase_caps", tuple[float, ...], (), (), "phase_caps for a policy that executes open-loop chunks "
               "(for_policy); () = phase_caps"),
@@ -375,7 +375,7 @@ class PhysVLAConfig:
     layout: str | ActionLayout = "libero_osc_pose"
     # the blender (eq. 2)
     cap: float = 0.05
-    phase_caps: tuple[float, ...] = (1.0, 1.0, 0.0, 1.0)
+    phase_caps: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)
     chunk_phase_caps: tuple[float, ...] = ()
     chunk: ChunkMode = "all"
     gripper_rule: GripperRule = "veto"
@@ -397,13 +397,13 @@ class PhysVLAConfig:
     pose_max_age_steps: int = 5
     pose_noise_m: float = 0.0
     # approach_pull (core/corrections/approach_pull.py)
-    approach_pull_m: float = 0.0
-    approach_pull_heading_u: float = 0.0
+    approach_pull_m: float = 0.10
+    approach_pull_heading_u: float = 0.3
     # approach_veto (core/corrections/approach_veto.py)
     close_meets_onset: bool = False
     # carry_to_target (core/corrections/carry_to_target.py)
-    carry_far_m: float = 0.0
-    carry_clear_m: float = 0.0
+    carry_far_m: float = 0.10
+    carry_clear_m: float = 0.05
     # centre_guide (core/corrections/centre_guide.py)
     centre_guide: bool = True
     centre_guide_trailing: bool = False
@@ -428,8 +428,8 @@ class PhysVLAConfig:
     # temporal_ema (core/corrections/temporal_ema.py)
     alpha_temporal: float = 0.85
     # transport_smoothing (core/corrections/transport_smoothing.py)
-    lift_bias_m: float = 0.02
-    alpha_transport: float = 0.92
+    lift_bias_m: float = 0.0
+    alpha_transport: float = 0.0
     # Branch B (eq. 4-6)
     el_mode: ElMode = "soft"
     weighting: Weighting = "joint_diag"
@@ -627,18 +627,28 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # veto where no finger can reach the object (never opening a closed gripper), the release veto where the
     # held object would land more than 2 cm off the target, the release assist for a still hold over the
     # target, the lift assist for a still, closed, unlifted hold, the rim guide for a hand settled beside
-    # the object; the paper's grasp guidance, transport EMA and place deceleration off
+    # the object; the paper's grasp guidance, transport EMA and place deceleration off; and, for a policy whose
+    # object or target moved (LIBERO-PRO), the approach pull, which takes a hand that closes 10 cm or more from the
+    # object, standing there (not on its way to it), to the object and carries what it lifts over the target, and
+    # the carry to the target, which carries an object the policy lowers 10 cm or more from the target over it,
+    # never lower than 5 cm over where it rested, with the transport phase given the authority for the carry and
+    # its smoothing and lift bias the identity (docs/decisions/29, 30, 35, 36)
     "default": PhysVLAConfig(),
 }
+# The default's fields before the approach pull and the carry joined it (docs/decisions/36-shift-shipped.md): the
+# presets measured on it keep them.
+BEFORE_PULL: dict = {"approach_pull_m": 0.0, "approach_pull_heading_u": 0.0, "carry_far_m": 0.0,
+                     "carry_clear_m": 0.0, "phase_caps": (1.0, 1.0, 0.0, 1.0), "alpha_transport": 0.92,
+                     "lift_bias_m": 0.02}
 # on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the
 # held object is within 2 cm of the target, flung blocks the simulated SO-101 carried at transport
 # speed (eval/results/so101_faults), so it stays off on arms until a rule that knows the object's
 # speed and height is measured. The lift assist (candidate 15) and the rim guide (candidate 18) are off
 # there too: they were measured on LIBERO's delta-pose arm and its bowls only, and they would move the
 # arm with the grasp and approach phases' authority; so is the centre guide, measured in simulation only.
-PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), place_rule="decelerate",
-                                            release_assist_m=0.0, lift_assist_u=0.0, lift_assist_at_rest=False,
-                                            rim_guide_m=0.0, centre_guide=False, beta=0.5)
+PRESETS["arm"] = PRESETS["default"].replace(**{**BEFORE_PULL, "phase_caps": (0.0, 0.0, 0.0, 0.0)},
+                                            place_rule="decelerate", release_assist_m=0.0, lift_assist_u=0.0,
+                                            lift_assist_at_rest=False, rim_guide_m=0.0, centre_guide=False, beta=0.5)
 # for a policy that shakes: the default + a low-pass before and after the carry whose strength follows
 # the policy's own measured roughness (the median of its last 9 second differences), so a policy that
 # does not shake is left alone (candidate 14's settings). On blocks no decision about it looked at
@@ -646,18 +656,12 @@ PRESETS["arm"] = PRESETS["default"].replace(phase_caps=(0.0, 0.0, 0.0, 0.0), pla
 # noise sweeps' jerk-degradation ratio 3.96 / 4.78 (the paper's Table A1 asks ~10), every learned ACT
 # within 1 pair of the default; the trade: the jittery expert succeeds 6 pp less than under the
 # default (2 won / 5 lost), which is why it is not the default.
-PRESETS["smooth"] = PRESETS["default"].replace(lowpass="adaptive", lowpass_space="target", lowpass_alpha_max=0.8,
-                                               lowpass_rough="median", lowpass_phases="approach,grasp,place")
-# for a camera policy under object-position shift (LIBERO-PRO): the default + the approach pull, which takes a hand
-# that closes 10 cm or more from the object, standing there (not on its way to it: approach_pull_heading_u), to the
-# object and carries what it lifts over the target, with the transport phase given the authority for the carry and
-# its smoothing the identity (docs/decisions/29-approach-pull.md), and the carry to the target, which carries an
-# object the policy lowers 10 cm or more from the target over it, never lower than 5 cm over where it rested
-# (docs/decisions/30-carry-to-target.md). The heading and the clearance keep it from costing a policy that closes
-# early on its way (docs/decisions/35-shift-heading-clear.md); opt-in: whether it can be the default is not measured.
-PRESETS["shift"] = PRESETS["default"].replace(approach_pull_m=0.10, phase_caps=(1.0, 1.0, 1.0, 1.0),
-                                              alpha_transport=0.0, lift_bias_m=0.0, carry_far_m=0.10,
-                                              approach_pull_heading_u=0.3, carry_clear_m=0.05)
+PRESETS["smooth"] = PRESETS["default"].replace(**BEFORE_PULL, lowpass="adaptive", lowpass_space="target",
+                                               lowpass_alpha_max=0.8, lowpass_rough="median",
+                                               lowpass_phases="approach,grasp,place")
+# `shift`: the name the default's approach pull and carry had while they were opt-in
+# (docs/decisions/36-shift-shipped.md)
+PRESETS["shift"] = PRESETS["default"]
 DEFAULT_PRESET = "default"
 ARM_PRESET = "arm"
 

@@ -1,6 +1,6 @@
 """The approach pull (core/corrections/approach_pull.py): a close commanded approach_pull_m or farther from the object
 takes the hand there (rise, cross, descend, close, lift) and carries the object over the target; a close nearer than
-that, a pose error of 1 cm or more, and every preset but the opt-in `shift` are left as they were."""
+that, a pose error of 1 cm or more, and the presets without it (paper, smooth, arm) are left as they were."""
 
 from __future__ import annotations
 
@@ -195,8 +195,9 @@ def test_a_policy_that_opens_near_the_object_has_the_hand_back_with_the_open_han
 def test_a_close_on_the_way_to_the_object_is_left_to_the_veto_with_the_heading_option():
     """approach_pull_heading_u = 0.3: a policy that closes 20 cm from the object while it commands the hand toward it
     at 0.3 action units or more is not pulled (the shipped default's outputs, step for step); one that closes while
-    it stands still, or moves away, is pulled as without the option."""
-    heading = ON.replace(approach_pull_heading_u=0.3)
+    it stands still, or moves away, is pulled as without the option. The shipped default has it."""
+    heading, without = ON, ON.replace(approach_pull_heading_u=0.0)
+    assert heading.approach_pull_heading_u == 0.3
 
     def run(cfg, vx, steps=8):
         c = Corrector(cfg, batch_size=1)
@@ -209,14 +210,15 @@ def test_a_close_on_the_way_to_the_object_is_left_to_the_veto_with_the_heading_o
         return np.array(outs)
 
     toward = run(heading, -0.5)  # toward the object (at -x from the hand) at 0.5 units
-    np.testing.assert_array_equal(toward, run(PRESETS["default"], -0.5))
+    np.testing.assert_array_equal(toward, run(OFF, -0.5))  # as with no pull at all, step for step
     assert (toward[:, 6] < 0).all() and (toward[:, 0] == -0.5).all()  # the veto holds it open; the policy's path
+    assert run(without, -0.5)[0][2] > 0  # without the option: pulled (the pull's rise)
     for vx in (0.0, -0.2, 0.5):  # standing, slower than 0.3 units, away: pulled
-        np.testing.assert_array_equal(run(heading, vx), run(ON, vx))
+        np.testing.assert_array_equal(run(heading, vx), run(without, vx))
         assert run(heading, vx)[0][2] > 0  # the pull's rise
     with pytest.raises(ValueError, match="approach_pull_heading_u"):
         PhysVLAConfig(approach_pull_heading_u=-0.1)
-    assert [n for n, p in PRESETS.items() if p.approach_pull_heading_u != 0.0] == ["shift"]
+    assert [n for n, p in PRESETS.items() if p.approach_pull_heading_u != 0.0] == ["default", "shift"]
     assert PhysVLAConfig.from_dict({"version": 7, "cap": 0.05}).approach_pull_heading_u == 0.0
 
 
@@ -227,13 +229,12 @@ def test_a_missed_grasp_goes_round_again():
     assert len(closes) >= 2  # closed, lifted nothing for LIFT_STEPS, came back down and closed again
 
 
-def test_off_in_every_preset_but_shift_and_in_a_file_saved_before_it_and_checked():
-    assert [n for n, p in PRESETS.items() if p.approach_pull_m != 0.0] == ["shift"]
-    # shift: the default, the pull's configuration and the carry to the target (tests/core/test_carry_to_target.py)
-    assert ON.replace(approach_pull_m=0.0, phase_caps=PRESETS["default"].phase_caps,
-                      alpha_transport=PRESETS["default"].alpha_transport,
-                      lift_bias_m=PRESETS["default"].lift_bias_m, carry_far_m=0.0, approach_pull_heading_u=0.0,
-                      carry_clear_m=0.0) == PRESETS["default"]
+def test_on_in_the_default_off_in_the_paper_s_the_arm_s_and_smooth_and_in_a_file_saved_before_it_and_checked():
+    assert [n for n, p in PRESETS.items() if p.approach_pull_m != 0.0] == ["default", "shift"]
+    # the default (`shift` its former name): the pull's configuration and the carry to the target
+    # (tests/core/test_carry_to_target.py); smooth and arm keep the default from before them (BEFORE_PULL)
+    assert ON == PRESETS["default"] == PRESETS["shift"]
+    assert PRESETS["smooth"].approach_pull_m == PRESETS["arm"].approach_pull_m == PRESETS["paper"].approach_pull_m == 0
     assert ON.approach_pull_heading_u == 0.3 and ON.carry_clear_m == 0.05
     assert ON.approach_pull_m == 0.10 and ON.phase_caps == (1.0, 1.0, 1.0, 1.0)
     assert PhysVLAConfig.from_dict({"version": 1, "cap": 0.05}).approach_pull_m == 0.0

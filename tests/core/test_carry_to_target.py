@@ -1,7 +1,7 @@
 """The carry to the target (core/corrections/carry_to_target.py, carry_to_target_place.py): an object the policy
 lowers (or lets go of) carry_far_m or farther from the target is carried over it, 15 cm above the target's origin,
 through the transport and place phases, and set down there; a lowering near the target, a policy that does not
-lower, a pose error that covers the distance, and every preset are left as they were."""
+lower, a pose error that covers the distance, and every preset but the default are left as they were."""
 
 from __future__ import annotations
 
@@ -21,9 +21,9 @@ SCALE = 0.05  # LIBERO's OSC: metres of hand travel per action unit
 REST_Z = 0.9
 TARGET = np.array([0.0, 0.0, REST_Z])
 GRASP = np.array([0.04, 0.0, 0.02])  # the hand's offset from the held object's origin (a rim grasp), m
-# the carry acts in the transport phase, which the shipped default gives no authority: full authority there, with the
-# paper's transport smoothing made the identity (as `shift` gives the approach pull's carry)
-OFF = PRESETS["default"].replace(phase_caps=(1.0, 1.0, 1.0, 1.0), alpha_transport=0.0, lift_bias_m=0.0)
+# the shipped default without the carry (and without the approach pull, so the carry alone acts), and with it; the
+# clearance (carry_clear_m) apart, in its own test
+OFF = PRESETS["default"].replace(carry_far_m=0.0, carry_clear_m=0.0, approach_pull_m=0.0)
 ON = OFF.replace(carry_far_m=0.10)
 
 
@@ -102,14 +102,14 @@ def test_no_carry_where_the_pose_error_covers_the_distance():
     assert not np.array_equal(carried, off)
 
 
-def test_off_in_every_preset_but_shift_and_in_a_file_saved_before_it_and_checked():
-    assert [n for n, p in PRESETS.items() if p.carry_far_m != 0.0] == ["shift"]
-    assert PRESETS["shift"].carry_far_m == ON.carry_far_m == 0.10
+def test_on_in_the_default_off_in_the_other_presets_and_in_a_file_saved_before_it_and_checked():
+    assert [n for n, p in PRESETS.items() if p.carry_far_m != 0.0] == ["default", "shift"]
+    assert PRESETS["default"].carry_far_m == ON.carry_far_m == 0.10 and PRESETS["default"].carry_clear_m == 0.05
     assert PhysVLAConfig.from_dict({"version": 3, "cap": 0.05}).carry_far_m == 0.0
     with pytest.raises(ValueError, match="carry_far_m"):
         PhysVLAConfig(carry_far_m=-0.1)
     with pytest.raises(ValueError, match=r"carry_far_m.*\(1, 1, 1, 1\)"):
-        PhysVLAConfig(carry_far_m=0.1)  # the shipped default's transport authority is 0
+        PhysVLAConfig(carry_far_m=0.1, approach_pull_m=0.0, phase_caps=(1.0, 1.0, 0.0, 1.0))  # no transport authority
 
 
 def test_an_object_from_a_shelf_above_the_target_is_carried_clear_of_it_only_with_carry_clear_m(monkeypatch):
@@ -128,5 +128,5 @@ def test_an_object_from_a_shelf_above_the_target_is_carried_clear_of_it_only_wit
     assert _off_target(high).min() <= ON.place_tol_m  # and brought over the plate
     with pytest.raises(ValueError, match="carry_clear_m"):
         PhysVLAConfig(carry_clear_m=-0.01)
-    assert [n for n, p in PRESETS.items() if p.carry_clear_m != 0.0] == ["shift"]
+    assert [n for n, p in PRESETS.items() if p.carry_clear_m != 0.0] == ["default", "shift"]
     assert PhysVLAConfig.from_dict({"version": 8, "cap": 0.05}).carry_clear_m == 0.0

@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from lerobot_physvla.core.config import LIBERO_OSC_POSE, METAWORLD, PRESETS, ActionLayout, PhysVLAConfig
+from lerobot_physvla.core.config import BEFORE_PULL, LIBERO_OSC_POSE, METAWORLD, PRESETS, ActionLayout, PhysVLAConfig
 from lerobot_physvla.core.corrections import params
 from lerobot_physvla.core.corrections.centre_guide import CENTRE_SLACK_M
 from lerobot_physvla.core.corrections.rim_guide import RIM_SETTLE_STEPS
@@ -22,9 +22,10 @@ from lerobot_physvla.core.state import SCENE, PhysState, field_offsets
 # Panda's span and pads, m
 BOWL = (0.05389, 0.05350, 0.05213, 0.06873, 0.08, 0.008, 0.008)  # LIBERO-Spatial's akita bowl on its plate
 CREAM_CHEESE = (0.041, 0.021, 0.009, 0.06, 0.08, 0.008, 0.008)  # LIBERO-Goal task 6's box into a bowl
-# the pull on every layout (the shipped default keeps it off MetaWorld's: centre_guide_trailing = False)
-ON = PRESETS["default"].replace(centre_guide=True, centre_guide_trailing=True)
-OFF = PRESETS["default"].replace(centre_guide=False)
+# the pull on every layout (the shipped default keeps it off MetaWorld's: centre_guide_trailing = False); the guide
+# alone: the shipped default without the approach pull and the carry (BEFORE_PULL; their own tests hold them)
+ON = PRESETS["default"].replace(**BEFORE_PULL, centre_guide=True, centre_guide_trailing=True)
+OFF = PRESETS["default"].replace(**BEFORE_PULL, centre_guide=False)
 
 
 def slack(scene, cfg=ON) -> float:
@@ -219,12 +220,13 @@ def test_the_pose_error_it_tolerates_is_the_room_beside_the_object():
 
 def test_the_configuration_refuses_what_it_cannot_do_and_old_configurations_load_without_it():
     with pytest.raises(ValueError, match="grasp phase's authority"):
-        PhysVLAConfig(centre_guide=True, phase_caps=(1.0, 0.0, 0.0, 1.0))
+        PhysVLAConfig(centre_guide=True, phase_caps=(1.0, 0.0, 0.0, 1.0), approach_pull_m=0.0, carry_far_m=0.0)
     with pytest.raises(ValueError, match="approach phase's authority, which is 0 in chunk_phase_caps"):
-        PhysVLAConfig(centre_guide=True, rim_guide_m=0.0, chunk_phase_caps=(0.0, 1.0, 0.0, 1.0))
+        PhysVLAConfig(centre_guide=True, rim_guide_m=0.0, chunk_phase_caps=(0.0, 1.0, 0.0, 1.0), approach_pull_m=0.0,
+                      carry_far_m=0.0)
     with pytest.raises(ValueError, match="centre_guide commands a delta layout"):
         PhysVLAConfig(centre_guide=True, layout=ActionLayout(dim=4, pos=(0, 1, 2), gripper=3, absolute=True),
-                      rim_guide_m=0.0, lift_assist_u=0.0)
+                      rim_guide_m=0.0, lift_assist_u=0.0, approach_pull_m=0.0, carry_far_m=0.0)
     assert not PhysVLAConfig.paper().centre_guide and not PRESETS["arm"].centre_guide
     c = PhysVLAConfig()  # the shipped default since eval/studies/centre_guide_step_gain.toml: on, off MetaWorld's mocap
     assert c.centre_guide and not c.centre_guide_trailing and not c.centre_guide_once

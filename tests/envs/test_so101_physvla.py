@@ -16,7 +16,7 @@ from lerobot.envs.configs import MetaworldEnv
 from lerobot_env_so101.configuration_so101 import SO101Env
 from lerobot_env_so101.scripted.pick_place import PickPlaceController
 
-from lerobot_physvla.core.config import ActionLayout, PhysVLAConfig, so101_layout
+from lerobot_physvla.core.config import BEFORE_PULL, ActionLayout, PhysVLAConfig, so101_layout
 from lerobot_physvla.core.corrector import Corrector
 from lerobot_physvla.core.state import PhysState
 from lerobot_physvla.envs.so101_physvla import SO101PhysVLAEnvConfig, SO101StateExport, as_so101_physvla_env
@@ -64,21 +64,22 @@ def test_the_corrector_takes_the_so101_layout_at_the_envs_action_scale_unless_a_
 
 
 def test_the_corrector_reads_grasp_zero_as_closed_and_one_as_open():
-    """The corrections tell a close from an open by the layout's midpoint (0.5 here), not by the sign."""
+    """The corrections tell a close from an open by the layout's midpoint (0.5 here), not by the sign. (Without the
+    approach pull, which would take the far close of the first case to the block: tests/core/test_approach_pull.py.)"""
     lay = so101_layout(0.025)
     # approach, far from the block: the veto opens a close to 1 (open), never to the symmetric layouts' -1
     st = make_state(n=5, dt=0.1, eef=(0.3, 0.0, 0.2), obj=(0.0, 0.0, 0.02), target=(0.2, 0.1, 0.02))
-    c = Corrector(PhysVLAConfig(layout=lay))
+    c = Corrector(PhysVLAConfig(layout=lay, **BEFORE_PULL))
     np.testing.assert_array_equal(c(np.array([[0.1, 0.0, 0.0, 0.0]]), st), [[0.1, 0.0, 0.0, 1.0]])
     # the veto never opens a gripper that holds (its last command closed, 0): judged on the open-to-closed span
     assert lay.gripper_hold_tol == 0.5 and so101_layout().gripper_hold_tol == 0.5
-    c = Corrector(PhysVLAConfig(layout=lay))
+    c = Corrector(PhysVLAConfig(layout=lay, **BEFORE_PULL))
     at_block = make_state(n=5, dt=0.1, eef=(0.0, 0.0, 0.04), obj=(0.0, 0.0, 0.02), target=(0.2, 0.1, 0.02))
     assert c(np.array([[0.0, 0.0, 0.0, 0.0]]), at_block)[0, 3] == 0.0  # grasp phase: closed on the block
     assert c(np.array([[0.1, 0.0, 0.0, 0.0]]), st)[0, 3] == 0.0  # then far from it: still held, not reopened
     # place, the block lifted 5 cm and 4 cm off the target: an open (0.9) is held back closed (0), a close is left
     st = make_state(n=5, dt=0.1, eef=(0.24, 0.0, 0.09), obj=(0.24, 0.0, 0.07), target=(0.2, 0.0, 0.02), lift=0.05)
-    c = Corrector(PhysVLAConfig(layout=lay))
+    c = Corrector(PhysVLAConfig(layout=lay, **BEFORE_PULL))
     held = c(np.array([[0.0, 0.0, -0.1, 0.9]]), st)
     assert held[0, 3] == 0.0 and held[0, 0] < 0.0  # closed, and steered toward the target
     c.reset()

@@ -156,15 +156,15 @@ def test_a_chunked_policy_gets_the_chunk_caps_and_every_other_backbone_the_caps(
 
     monkeypatch.setattr(harness, "_scene", lambda name: SimpleNamespace(layout=LIBERO_OSC_POSE, expert={}))
     monkeypatch.setattr("lerobot_physvla.core.corrector.Corrector", lambda cfg: built.append(cfg))
-    cfg = preset("default", chunk_phase_caps=(1.0, 0.05, 0.0, 1.0))
+    cfg = preset("default", chunk_phase_caps=(1.0, 0.05, 1.0, 1.0))
     ckpts = Path(__file__).resolve().parents[2] / "backbones" / "checkpoints"
     for policy in ("", str(ckpts / "act_single"), str(ckpts / "act_chunk")):
         unit = Unit("expert_clean" if not policy else Path(policy).name, "c", cfg.to_dict(), 0, 0, 0, policy=policy)
         harness.compute_unit(unit)
     expert, single, chunked = built
-    assert cfg.caps != (1.0, 0.05, 0.0, 1.0)
+    assert cfg.caps != (1.0, 0.05, 1.0, 1.0)
     assert expert.caps == single.caps == cfg.caps  # act_single: n_action_steps 1
-    assert chunked.caps == (1.0, 0.05, 0.0, 1.0)  # act_chunk executes 10 of its 20-step chunk
+    assert chunked.caps == (1.0, 0.05, 1.0, 1.0)  # act_chunk executes 10 of its 20-step chunk
     assert chunked.replace(phase_caps=cfg.phase_caps, chunk_phase_caps=cfg.chunk_phase_caps) == cfg
 
 

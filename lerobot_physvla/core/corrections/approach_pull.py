@@ -182,7 +182,7 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                                 "PULL_OPEN_HANDBACK": lambda c, lay: float(c.approach_pull_open_handback),
                                 "PULL_HEADING_U": lambda c, lay: c.approach_pull_heading_u},
                         on=lambda c: c.approach_pull_m > 0.0, commit=approach_pull_commit,
-                        fields=(Field("approach_pull_m", float, 0.0, 0.0, "a policy that closes this far (m, "
+                        fields=(Field("approach_pull_m", float, 0.10, 0.0, "a policy that closes this far (m, "
                                       "horizontally) or farther from the object is taken there: the hand rises, "
                                       "crosses over the object, comes down, closes, lifts it and carries it over the "
                                       "target; 0: off"),
@@ -203,7 +203,7 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                                       "on to its own grasp); False: the pull keeps the hand",
                                       experimental="failed its design rule, in no preset: "
                                       "docs/decisions/33-pull-handback.md"),
-                                Field("approach_pull_heading_u", float, 0.0, 0.0, "a far close does not engage the "
+                                Field("approach_pull_heading_u", float, 0.3, 0.0, "a far close does not engage the "
                                       "approach pull while the policy commands the hand toward the object at this "
                                       "speed or more (action units): a policy on its way that closes early is left "
                                       "to the approach veto; 0: off")),

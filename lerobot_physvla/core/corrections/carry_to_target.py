@@ -107,10 +107,10 @@ CORRECTION = Correction("carry_to_target", TRANSPORT, 10, carry_to_target,
                                 "CARRY_GAIN": lambda c, lay: lay.step_gain,
                                 "CARRY_CLEAR_M": lambda c, lay: c.carry_clear_m},
                         on=lambda c: c.carry_far_m > 0.0, commit=carry_to_target_commit,
-                        fields=(Field("carry_far_m", float, 0.0, 0.0, "in transport, an object the policy lowers (or "
+                        fields=(Field("carry_far_m", float, 0.10, 0.0, "in transport, an object the policy lowers (or "
                                       "lets go of) this far (m, horizontally) or farther from the target is carried "
                                       "over the target instead, 15 cm above it, and set down there; 0: off"),
-                                Field("carry_clear_m", float, 0.0, 0.0, "the carry to the target never lowers the "
+                                Field("carry_clear_m", float, 0.05, 0.0, "the carry to the target never lowers the "
                                       "object below this height (m) over where it rested before the lift (an object "
                                       "lifted from a shelf above the target); 0: off")),
                         check=lambda c: _check(c), pose=POSE)

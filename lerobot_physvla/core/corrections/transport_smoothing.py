@@ -40,6 +40,6 @@ def transport_commit(phase, geo, p, mem):
 CORRECTION = Correction("transport_smoothing", TRANSPORT, 0, transport_smoothing, values={
     "ALPHA_TRANSPORT": lambda c, lay: c.alpha_transport, "LIFT_BIAS_U": lambda c, lay: c.lift_bias_m / lay.metres_per_unit},
     commit=transport_commit,
-    fields=(Field("lift_bias_m", float, 0.02, 0.02, "the vertical lift bias added to the z command, m"),
-            Field("alpha_transport", float, 0.92, 0.92, "the EMA's factor on the position channels")),
+    fields=(Field("lift_bias_m", float, 0.0, 0.02, "the vertical lift bias added to the z command, m"),
+            Field("alpha_transport", float, 0.0, 0.92, "the EMA's factor on the position channels")),
     check=lambda c: unit_interval(c, "alpha_transport"))
