@@ -214,8 +214,6 @@ class Study:
         """The configuration `name` as it runs on `scene` (PhysVLAConfig.to_dict())."""
         key = (name, scene)
         if key not in self._configs:
-            if name not in self.config_specs:
-                raise SystemExit(f"study {self.name}: unknown configuration {name!r}; declare it under [configs]")
             from lerobot_physvla.core.config import PhysVLAConfig, preset
 
             from lerobot_physvla.sources.perception import PerceptionConfig
