@@ -110,8 +110,8 @@ def activate_rollout(argv: list[str]) -> None:
             if step.cfg.approach_pull_m > 0:  # off in `arm`; measured in simulation only
                 print("lerobot-physvla: warning: the approach pull (approach_pull_m > 0: the `default` preset, not "
                       "`arm`) was measured in simulation only (docs/decisions/29-approach-pull.md, "
-                      "36-shift-shipped.md); on "
-                      "this arm it will move the hand to the object and carry it, with authority in every phase",
+                      "36-shift-shipped.md); on this arm it will move the hand to the object and carry it, with "
+                      "authority in every phase",
                       file=sys.stderr)
             if step.cfg.carry_far_m > 0:  # an option, measured in simulation only
                 print("lerobot-physvla: warning: the carry to the target (carry_far_m > 0) was measured in simulation "
