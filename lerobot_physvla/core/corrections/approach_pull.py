@@ -20,7 +20,8 @@ the hand to the object and the object over the target:
                approach_pull_stall_steps = n > 0, where the descent stalls: n control steps without coming
                STALL_DZ_M lower, at h <= STALL_MAX_H_M (an object the fingers rest on before GRASP_H_M)
       lift     then a_xy = 0, a_z = LIFT_U, the gripper closed, until the object is lifted past h_lift (after
-               LIFT_STEPS steps without that, the grasp missed: back to rise)
+               LIFT_STEPS steps without that, the grasp missed: back to rise; "lifted" as eq. 3 says it, so an
+               object the fingers only nudged up a millimetre is not)
       carry    lifted (transport): a_xy = k (p_tgt - p_obj)_xy / scale, the hand held CARRY_M above the target's
                origin, the gripper closed
     in the place phase the place corrections and the policy take over (the policy's open is its release; the
@@ -48,13 +49,16 @@ from lerobot_physvla.core.corrections.base import (EEF, GRIPPER, GRIPPER_CLOSED,
                                                    OBJ, POSE_ERROR_M, TGT, X, Y, Z, Correction, Field, needs_authority)
 from lerobot_physvla.core.phase import APPROACH, GRASP, PLACE, TRANSPORT
 
-# the close's distance from the object that engages the pull, m; step gain; the stalled descent's steps (0: off)
-PARAMS = ("PULL_FAR_M", "PULL_GAIN", "PULL_STALL_STEPS", "PULL_HANDBACK", "PULL_OPEN_HANDBACK", "PULL_HEADING_U")
+# the close's distance from the object that engages the pull, m; step gain; the stalled descent's steps (0: off);
+# the handbacks' flags; the heading, action units; eq. 3's lift threshold (h_lift + the pose error told), m
+PARAMS = ("PULL_FAR_M", "PULL_GAIN", "PULL_STALL_STEPS", "PULL_HANDBACK", "PULL_OPEN_HANDBACK", "PULL_HEADING_U",
+          "PULL_LIFTED_M")
 # 1.0 while engaged; the stage (0 travel, 1 close, 2 lift, 3 carry); committed steps in the stage (in travel: steps
 # since the descent last came STALL_DZ_M lower); the hand's height then, m; 1.0 once the policy has opened since the
 # close that engaged the pull
 MEMORY = (("PULL_ON", 1), ("PULL_STAGE", 1), ("PULL_STEPS", 1), ("PULL_LOW", 1), ("PULL_OPENED", 1))
-PULL_FAR_M, PULL_GAIN, PULL_STALL_STEPS, PULL_HANDBACK, PULL_OPEN_HANDBACK, PULL_HEADING_U = slots.params(__file__)
+(PULL_FAR_M, PULL_GAIN, PULL_STALL_STEPS, PULL_HANDBACK, PULL_OPEN_HANDBACK, PULL_HEADING_U,
+ PULL_LIFTED_M) = slots.params(__file__)
 PULL_ON, PULL_STAGE, PULL_STEPS, PULL_LOW, PULL_OPENED = slots.memory(__file__)
 CLEAR_M = 0.12  # the travel height of the hand above the object's origin, m
 GRASP_H_M = 0.01  # the hand's height above the object's origin where it closes, m
@@ -141,7 +145,7 @@ def approach_pull(a_raw, a_phys, idx, geo, p, mem, commit):
             mem[PULL_STEPS] += 1.0
             if stage < 1.5 and mem[PULL_STEPS] >= CLOSE_STEPS:
                 mem[PULL_STAGE], mem[PULL_STEPS] = 2.0, 0.0
-            elif stage > 1.5 and mem[PULL_STEPS] >= LIFT_STEPS and geo[LIFT] <= 0.0:
+            elif stage > 1.5 and mem[PULL_STEPS] >= LIFT_STEPS and not geo[LIFT] > p[PULL_LIFTED_M]:  # eq. 3
                 mem[PULL_STAGE], mem[PULL_STEPS], mem[PULL_LOW] = 0.0, 0.0, FAR_UP_M  # missed: go round again
 
 
@@ -180,7 +184,8 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                                 "PULL_STALL_STEPS": lambda c, lay: float(c.approach_pull_stall_steps),
                                 "PULL_HANDBACK": lambda c, lay: float(c.approach_pull_handback),
                                 "PULL_OPEN_HANDBACK": lambda c, lay: float(c.approach_pull_open_handback),
-                                "PULL_HEADING_U": lambda c, lay: c.approach_pull_heading_u},
+                                "PULL_HEADING_U": lambda c, lay: c.approach_pull_heading_u,
+                                "PULL_LIFTED_M": lambda c, lay: c.h_lift_m + c.pose_error_told_m},
                         on=lambda c: c.approach_pull_m > 0.0, commit=approach_pull_commit,
                         fields=(Field("approach_pull_m", float, 0.10, 0.0, "a policy that closes this far (m, "
                                       "horizontally) or farther from the object is taken there: the hand rises, "
