@@ -213,9 +213,8 @@ FAMILIES: tuple[tuple[str, tuple, str], ...] = (
     ("Camera ACTs, LIBERO-PRO position shift (Spatial swap, Object x-shift)",
      (("camera_shift_default", "shift", ("spatial_swap", "object_temp_x"), ()),), ""),
     ("Camera ACTs, LIBERO-PRO mug, new objects",
-     (("camera_libero_pro", "shipped default", ("with_mug", "replaced"), ()),
-      ("camera_spatial_diffusion", "shipped default", ("spatial_with_mug", "spatial_replaced"), ())),
-     BEFORE_PULL_NOTE),
+     (("camera_families_default", "shipped default",
+       ("object_with_mug", "spatial_with_mug", "object_replaced", "spatial_replaced"), ()),), ""),
 )
 MARKS = "†‡§¶"
 

@@ -109,7 +109,7 @@ def test_the_readme_calls_shipped_default_only_what_ships_and_footnotes_the_rest
     """A README row unmarked ran the shipped default of this code: PhysVLAConfig() in the env's layout, plus the
     options its env type adds (MetaWorld's close_meets_onset); a row that ran an older default is marked, and its
     footnote names how it differs (the LIBERO-Spatial rows: before the centre guide; before the approach pull and the
-    carry every row but MetaWorld's and the camera originals and position-shift rows)."""
+    carry every row but MetaWorld's and the camera rows)."""
     from lerobot_physvla.core.config import so101_layout
     from lerobot_physvla.envs.metaworld_physvla import MetaworldPhysVLAEnvConfig
     from lerobot_physvla.sim.libero_pro import base_suite
@@ -137,9 +137,9 @@ def test_the_readme_calls_shipped_default_only_what_ships_and_footnotes_the_rest
             if "LIBERO-Spatial" in label:
                 assert "`centre_guide=false`" in note and "before the centre guide" in note, note
     # the LIBERO-Spatial rows (no study ran the default with the centre guide there), and every row but MetaWorld's
-    # and the camera originals and position-shift rows (no study ran the default with the approach pull and the carry
-    # against baseline there: docs/decisions/36)
-    assert marked == 6
+    # and the camera rows (no study ran the default with the approach pull and the carry against baseline there:
+    # docs/decisions/36)
+    assert marked == 5
 
 
 def test_the_results_page_never_calls_an_older_default_the_shipped_default():
