@@ -223,8 +223,8 @@ def test_a_close_on_the_way_to_the_object_is_left_to_the_veto_with_the_heading_o
 
 
 def test_a_missed_grasp_goes_round_again():
-    """Also where the fingers nudged the object a millimetre off its rest (a box tipped onto its edge), which eq. 3
-    does not call lifted: the pull lifted the empty hand for 167 steps, to 97 cm above the table, on LIBERO-Object's
+    """Also where the fingers nudged the object a millimetre or a centimetre off its rest, which eq. 3 does not call
+    lifted: the pull lifted the empty hand for 167 steps, to 97 cm above the box, on LIBERO-Object's
     cream cheese box (eval/trace_episode.py camera_libero_pro --block original --backbone object_act_camera --task 1
     --seed 30, under the shipped default), before the missed lift was judged as eq. 3 judges a lift."""
     for nudged in (0.0, 0.001, 0.5 * ON.h_lift_m):
