@@ -545,6 +545,12 @@ class PhysVLAConfig:
         (core/pose_filter.py residual_m) where pose_noise_m turns it on."""
         return self.pose_error_m + 2.0 * residual_m(self.pose_noise_m)
 
+    @property
+    def lifted_m(self) -> float:
+        """Eq. 3's "lifted" threshold as the corrector applies it, m: h_lift_m + the pose error told (an error alone
+        never says "lifted")."""
+        return self.h_lift_m + self.pose_error_told_m
+
     def for_policy(self, actions_per_call: int) -> PhysVLAConfig:
         """The configuration for a policy that executes `actions_per_call` actions of each policy call
         open loop (1: a single-step policy; ACT / Diffusion: their n_action_steps): chunk_phase_caps

@@ -380,8 +380,7 @@ class Corrector:
         cfg, lay = self.cfg, self.layout
         fp = np.zeros(N_FP)
         e = cfg.pose_error_told_m  # the pose error the distances answer to (docs/method.md, "Pose error"), m
-        # eq. 3's lift threshold + e: an error alone never says "lifted"
-        fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_CAP] = cfg.delta_grasp_m, cfg.h_lift_m + e, cfg.cap
+        fp[FP_D_GRASP], fp[FP_H_LIFT], fp[FP_CAP] = cfg.delta_grasp_m, cfg.lifted_m, cfg.cap  # eq. 3
         fp[FP_GRIP_OPEN], fp[FP_LOW], fp[FP_HIGH] = lay.gripper_open, lay.low, lay.high
         if self.branch_b is not None:
             fp[FP_B:FP_CAPS] = self.branch_b.params

@@ -185,7 +185,7 @@ CORRECTION = Correction("approach_pull", APPROACH, 2, approach_pull,
                                 "PULL_HANDBACK": lambda c, lay: float(c.approach_pull_handback),
                                 "PULL_OPEN_HANDBACK": lambda c, lay: float(c.approach_pull_open_handback),
                                 "PULL_HEADING_U": lambda c, lay: c.approach_pull_heading_u,
-                                "PULL_LIFTED_M": lambda c, lay: c.h_lift_m + c.pose_error_told_m},
+                                "PULL_LIFTED_M": lambda c, lay: c.lifted_m},
                         on=lambda c: c.approach_pull_m > 0.0, commit=approach_pull_commit,
                         fields=(Field("approach_pull_m", float, 0.10, 0.0, "a policy that closes this far (m, "
                                       "horizontally) or farther from the object is taken there: the hand rises, "
