@@ -31,7 +31,7 @@ NEUTRAL = {"pose_error_m": 0.0, "pose_max_age_steps": 5, "geometry": "fixed", "v
            "close_meets_onset": False, "approach_pull_m": 0.0, "centre_guide_straddle": False, "carry_far_m": 0.0,
            "approach_pull_stall_steps": 0, "approach_pull_handback": False,
            "approach_pull_open_handback": False, "approach_pull_heading_u": 0.0,
-           "carry_clear_m": 0.0}
+           "carry_clear_m": 0.0, "centre_guide_clears": False}
 # fields renamed after episodes were first stored (core/config.py ALIASES): hashed under their first names, and
 # the saved form's `version` left out, so a rename or a new version keeps every configuration's hash
 HASHED_AS = {"place_tol_m": "redirect_tol_m", "place_gain": "redirect_gain"}
@@ -41,8 +41,8 @@ POSE_SOURCE = "pose_source"  # ... and where its poses come from ("markers": the
 
 def effective(config: dict) -> dict:
     """The configuration as it acts: a full PhysVLAConfig dict, with the low-pass's parameters reset when the
-    low-pass is off, release_assist_error_k when no pose error is told, centre_guide_straddle where the guide is off,
-    and centre_guide_trailing where the guide is off or the layout's step gain is 1 (they cannot change an action
+    low-pass is off, release_assist_error_k when no pose error is told, centre_guide_straddle and centre_guide_clears
+    where the guide is off, and centre_guide_trailing where the guide is off or the layout's step gain is 1 (they cannot change an action
     then; a guide kept off a trailing-target layout is the guide off), the NEUTRAL fields left out where neutral,
     and the perception faults between the scene and the corrector (`perception`) and the pose source
     (`pose_source`) where the study sets any."""
@@ -57,13 +57,13 @@ def effective(config: dict) -> dict:
                       lowpass_space="action", lowpass_speed_hi=0.0, lowpass_rough="ema", lowpass_lag="trail")
     if c.pose_error_told_m == 0.0:  # no pose error told: the release assist's widening by it cannot act
         c = c.replace(release_assist_error_k=0.0)
-    if not c.centre_guide:  # centre_guide_straddle only shapes the guide's pull
-        c = c.replace(centre_guide_straddle=False)
+    if not c.centre_guide:  # centre_guide_straddle and centre_guide_clears only shape the guide's pull
+        c = c.replace(centre_guide_straddle=False, centre_guide_clears=False)
     if not c.centre_guide or c.action_layout.step_gain >= 1.0:  # centre_guide_trailing cannot change an action
         c = c.replace(centre_guide_trailing=True)
     elif not c.centre_guide_trailing:  # a trailing-target layout with the guide kept off it: the guide is off
         c = c.replace(centre_guide=False, centre_guide_once=False, centre_guide_yield_steps=0,
-                      centre_guide_straddle=False, centre_guide_trailing=True)
+                      centre_guide_straddle=False, centre_guide_clears=False, centre_guide_trailing=True)
     d = c.to_dict()
     del d["version"]
     d = {HASHED_AS.get(k, k): v for k, v in d.items()}

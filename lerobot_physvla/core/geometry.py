@@ -15,7 +15,8 @@ height (metres):
                                          bottle is grasped whole)                                 bowl 4.59 cm (4.7)
     centre slack  span/2 - w_o           the room an open hand has on either side of an object it closes across:
                                          the pose error the centre guide tolerates (no pull on a rim grasp, nor
-                                         with the fixed distances)                                bowl: no pull
+                                         with the fixed distances, nor with centre_guide_clears on an object
+                                         whose r exceeds span/2)                                  bowl: no pull
     rim zone      delta_grasp + span     an open hand whose far pad is within a span of the edge  bowl 14.2 cm (14)
                   top + RIM_HOVER_M      and no higher above the top than a policy's hover        bowl 15.0 cm (15)
     veto height   top + pad_h            a pad whose centre is above this misses the object       bowl 6.01 cm (6)
@@ -37,7 +38,7 @@ import math
 from numba import njit
 
 from lerobot_physvla.core.corrections.base import POSE_ERROR_M
-from lerobot_physvla.core.corrections.centre_guide import CENTRE_SLACK_M, NO_PULL_M
+from lerobot_physvla.core.corrections.centre_guide import CENTRE_CLEARS, CENTRE_SLACK_M, NO_PULL_M
 from lerobot_physvla.core.corrections.place_redirect import PLACE_TOL_M
 from lerobot_physvla.core.corrections.release_veto import CARRY_REACH_M
 from lerobot_physvla.core.corrections.rim_guide import RIM_GUIDE_M, RIM_HEIGHT_M, RIM_REACH_M, RIM_SLACK_M
@@ -77,6 +78,8 @@ def scene_distances(row, o_scene, p, pe, veto_cfg, veto_out):
     else:  # grasped whole: no rim to pull to; the centre guide's room on either side
         pe[RIM_SLACK_M] = -1.0
         pe[CENTRE_SLACK_M] = 0.5 * span - w_o
+        if p[CENTRE_CLEARS] > 0.5 and r > 0.5 * span:  # not cleared in every orientation: no pull (centre_guide_clears)
+            pe[CENTRE_SLACK_M] = NO_PULL_M
     pe[RIM_REACH_M] = d_grasp + span
     pe[RIM_HEIGHT_M] = top + RIM_HOVER_M
     if p[PLACE_TOL_M] > 0.0:

@@ -210,6 +210,32 @@ def test_with_straddle_a_hand_within_the_room_beside_the_object_is_left_to_the_p
     np.testing.assert_array_equal(_run(OFF.replace(centre_guide_straddle=True), inside)[0], _run(OFF, inside)[0])
 
 
+# LIBERO-Object's objects the Panda closes across (sources/geometry.py, measured on the scenes): a can the open hand
+# clears in every orientation (r 3.5 cm under span / 2 = 4 cm) and the cream cheese box it does not (r 4.06 cm)
+CAN = (0.0349, 0.0313, 0.0378, 0.06, 0.08, 0.008, 0.008)
+BOX = (0.0406, 0.0213, 0.0089, 0.06, 0.08, 0.008, 0.008)
+
+
+def test_with_clears_a_box_longer_than_the_open_hand_is_left_to_the_policy_and_a_can_is_pulled_as_before():
+    """centre_guide_clears: the state carries no yaw, so an object whose half-diagonal exceeds half the hand's opening
+    may be closed along its length; centred, the camera ACT's pads landed on the cream cheese box's corners and the
+    close missed (docs/decisions/38-centre-guide-clears.md). Such an object gets no pull; one the open hand clears in
+    every orientation is pulled exactly as without the flag; with the guide off the flag changes nothing."""
+    clears = ON.replace(centre_guide_clears=True)
+    assert slack(BOX, clears) < 0 and slack(BOX) == pytest.approx(0.04 - 0.0213)
+    assert slack(CAN, clears) == slack(CAN) == pytest.approx(0.04 - 0.0313)
+    xy = (0.015, -0.01)  # 1.8 cm off: within delta_grasp of both, beyond the can's room
+    left, a, _ = _run(clears, xy, scene=BOX)
+    np.testing.assert_array_equal(left, np.tile(a, (len(left), 1)))
+    assert (_run(ON, xy, scene=BOX)[0][RIM_SETTLE_STEPS:, 0] < 0).all()  # without the flag: pulled onto the box
+    pulled, _, _ = _run(clears, xy, scene=CAN)
+    assert (pulled[RIM_SETTLE_STEPS:, 0] < 0).all()
+    np.testing.assert_array_equal(pulled, _run(ON, xy, scene=CAN)[0])
+    np.testing.assert_array_equal(_run(OFF.replace(centre_guide_clears=True), xy, scene=BOX)[0],
+                                  _run(OFF, xy, scene=BOX)[0])
+    assert PhysVLAConfig.from_dict({"version": 9, "cap": 0.05}).centre_guide_clears is False
+
+
 def test_the_pose_error_it_tolerates_is_the_room_beside_the_object():
     room = 0.04 - 0.021
     pulled, a, _ = _run(ON.replace(pose_error_m=room * 0.9), (0.02, 0.0))

@@ -191,10 +191,10 @@ def test_the_class_is_a_plain_dataclass_that_agrees_with_the_declarations():
     assert PhysVLAConfig.__doc__.startswith("The corrector's configuration.")
 
 
-# The fields of version 9 of the saved form (core/config.py CONFIG_VERSION; version 1 lacked approach_pull_m, 2 centre_guide_straddle, 3 carry_far_m, 4 approach_pull_stall_steps, 5 approach_pull_handback, 6 approach_pull_open_handback, 7 approach_pull_heading_u, 8 carry_clear_m). A field added or renamed needs a new
+# The fields of version 10 of the saved form (core/config.py CONFIG_VERSION; version 1 lacked approach_pull_m, 2 centre_guide_straddle, 3 carry_far_m, 4 approach_pull_stall_steps, 5 approach_pull_handback, 6 approach_pull_open_handback, 7 approach_pull_heading_u, 8 carry_clear_m, 9 centre_guide_clears). A field added or renamed needs a new
 # version: CONFIG_VERSION + 1, an UPGRADES entry (its value from before it), and this list for the new version.
-FIELDS_V9 = ('alpha_temporal', 'alpha_transport', 'approach_pull_handback', 'approach_pull_heading_u', 'approach_pull_m', 'approach_pull_open_handback', 'approach_pull_stall_steps', 'assist_steps', 'assist_still', 'beta', 'cap', 'carry_clear_m', 'carry_far_m',
-             'centre_guide',
+FIELDS_V10 = ('alpha_temporal', 'alpha_transport', 'approach_pull_handback', 'approach_pull_heading_u', 'approach_pull_m', 'approach_pull_open_handback', 'approach_pull_stall_steps', 'assist_steps', 'assist_still', 'beta', 'cap', 'carry_clear_m', 'carry_far_m',
+             'centre_guide', 'centre_guide_clears',
              'centre_guide_once', 'centre_guide_straddle', 'centre_guide_trailing', 'centre_guide_yield_steps', 'chunk', 'chunk_phase_caps',
              'close_meets', 'close_meets_onset', 'd_thresh_m', 'delta_grasp_m', 'dls_damping', 'el_mode', 'eps_nm',
              'geometry', 'grasp_offset_m', 'gripper_rule', 'h_lift_m', 'hold_steps', 'layout', 'lift_assist_at_rest',
@@ -209,8 +209,8 @@ FIELDS_V9 = ('alpha_temporal', 'alpha_transport', 'approach_pull_handback', 'app
 def test_the_saved_form_is_versioned_and_a_new_field_needs_a_new_version():
     from lerobot_physvla.core.config import CONFIG_VERSION, FIELDS, UPGRADES
 
-    assert CONFIG_VERSION == 9 and set(UPGRADES) == set(range(CONFIG_VERSION))
-    assert tuple(sorted(f.name for f in FIELDS)) == FIELDS_V9, "a field changed: bump CONFIG_VERSION, add an upgrade"
+    assert CONFIG_VERSION == 10 and set(UPGRADES) == set(range(CONFIG_VERSION))
+    assert tuple(sorted(f.name for f in FIELDS)) == FIELDS_V10, "a field changed: bump CONFIG_VERSION, add an upgrade"
     assert PhysVLAConfig(cap=0.1).to_dict()["version"] == CONFIG_VERSION
     with pytest.raises(ValueError, match="upgrade lerobot-physvla"):
         PhysVLAConfig.from_dict({"version": CONFIG_VERSION + 1, "cap": 0.1})

@@ -33,6 +33,13 @@ across (beyond the paper; centre_guide). centre_guide_approach runs the same ker
     wherever it closes across it, so its grasp needs no centring. A pull that began farther out goes on to the
     centre as before. Traced: a camera ACT that grasps LIBERO-Object's cream cheese 1.0-1.4 cm off its origin
     (slack 1.9 cm) succeeds; centred, it closed higher and lost the box (docs/decisions/25-centre-guide.md).
+    clears (centre_guide_clears): an object the open hand does not clear in every orientation (its horizontal
+    radius, the half-diagonal of a box, above span / 2) is not pulled: the state carries no yaw, so which of its
+    sides the hand closes across is the policy's, and a centred hand closing along its length lands its pads on
+    its corners. Traced: LIBERO-Object's cream cheese box (r 4.06 cm, w_o 2.13 cm, 1.8 cm tall; span / 2 4.0 cm)
+    under the competent camera ACT: pulled to the centre the hand stops 1.3 cm over the box's origin with the
+    pads on it and the close misses; left at its own 1.9 cm off the origin it goes down to 1.0 cm and lifts
+    the box (docs/decisions/38-centre-guide-clears.md).
     pose error (pose_error_m = e): the pull aims the hand at the object's pose, so e moves the grasp by up to e;
     it pulls only while e < span / 2 - w_o (CENTRE_SLACK_M: the room an open hand has on either side of the
     object across its narrower side), and leaves the hand to the policy beyond.
@@ -53,14 +60,15 @@ from lerobot_physvla.core.phase import APPROACH, GRASP
 # or with no measured scene (core/geometry.py)
 # the fraction of the gap it commands a step (ActionLayout.step_gain); 1.0: one pull per approach (centre_guide_once)
 # control steps a pulled hand may hold its height before the pull lets go (0: never); 1.0: no pull begins within the
-# slack (centre_guide_straddle)
-PARAMS = ("CENTRE_SLACK_M", "CENTRE_GAIN", "CENTRE_ONCE", "CENTRE_YIELD", "CENTRE_STRADDLE")
+# slack (centre_guide_straddle); 1.0: no pull on an object the open hand does not clear in every orientation
+# (centre_guide_clears, read by core/geometry.py)
+PARAMS = ("CENTRE_SLACK_M", "CENTRE_GAIN", "CENTRE_ONCE", "CENTRE_YIELD", "CENTRE_STRADDLE", "CENTRE_CLEARS")
 # the hand's x, y (m) over the last RIM_SETTLE_STEPS committed steps; steps recorded so far; 1.0 while it pulls;
 # 1.0 once a pull has ended in this approach; the hand's lowest z in this pull (m) and the steps since it went
 # CENTRE_DROP_M lower; 1.0 once a pull has let go (yield) in this approach
 MEMORY = (("CENTRE_TRACK", 10), ("CENTRE_AT", 1), ("CENTRE_ON", 1), ("CENTRE_DONE", 1), ("CENTRE_LOW", 1),
           ("CENTRE_STILL", 1), ("CENTRE_LET", 1))
-CENTRE_SLACK_M, CENTRE_GAIN, CENTRE_ONCE, CENTRE_YIELD, CENTRE_STRADDLE = slots.params(__file__)
+CENTRE_SLACK_M, CENTRE_GAIN, CENTRE_ONCE, CENTRE_YIELD, CENTRE_STRADDLE, CENTRE_CLEARS = slots.params(__file__)
 CENTRE_TRACK, CENTRE_AT, CENTRE_ON, CENTRE_DONE, CENTRE_LOW, CENTRE_STILL, CENTRE_LET = slots.memory(__file__)
 CENTRE_DROP_M = 0.005  # yield: a pulled hand that goes down less than this is holding its height, metres
 POSE = "aims the hand at the object's pose: no pull once pose_error_m >= span / 2 - the object's narrower half-extent"
@@ -122,7 +130,8 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                                 "CENTRE_GAIN": lambda c, lay: lay.step_gain,
                                 "CENTRE_ONCE": lambda c, lay: float(c.centre_guide_once),
                                 "CENTRE_YIELD": lambda c, lay: float(c.centre_guide_yield_steps),
-                                "CENTRE_STRADDLE": lambda c, lay: float(c.centre_guide_straddle)},
+                                "CENTRE_STRADDLE": lambda c, lay: float(c.centre_guide_straddle),
+                                "CENTRE_CLEARS": lambda c, lay: float(c.centre_guide_clears)},
                         on=pulls, commit=centre_guide_commit,
                         fields=(Field("centre_guide", bool, True, False, "an open hand settled low over an object "
                                       "it can close across is pulled onto the object's centre until it closes "
@@ -138,6 +147,10 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                                       "origin than span / 2 - its narrower half-extent): its open fingers clear "
                                       "the object on either side", experimental="failed its confirmation, in no "
                                       "preset: docs/decisions/25-centre-guide.md"),
+                                Field("centre_guide_clears", bool, False, False, "the centre guide pulls only an "
+                                      "object the open hand clears in every orientation (its horizontal radius at "
+                                      "most half the hand's opening): the state carries no yaw, so a longer one's "
+                                      "grasp side is left to the policy"),
                                 Field("centre_guide_trailing", bool, False, True, "the centre guide also pulls "
                                       "where the action moves a target the hand trails (a layout step_gain below "
                                       "1, MetaWorld's mocap), at that gain; false: it is off on such a layout"),),
