@@ -22,7 +22,7 @@ import headline  # noqa: E402
 import report  # noqa: E402
 import run  # noqa: E402
 import study as study_mod  # noqa: E402
-from store import Store, config_hash  # noqa: E402
+from store import Store, config_hash, effective  # noqa: E402
 from study import Study  # noqa: E402
 
 from lerobot_physvla.core.config import BEFORE_PULL, PRESETS, PhysVLAConfig  # noqa: E402
@@ -301,6 +301,11 @@ def test_config_hash_sees_centre_guide_trailing_only_where_it_can_change_an_acti
     straddle = kept_off.replace(centre_guide_straddle=True)
     assert config_hash(straddle.to_dict()) == config_hash(off.replace(**mw).to_dict())
     assert config_hash(guide.replace(centre_guide_straddle=True).to_dict()) != config_hash(guide.to_dict())
+    # ... and so does centre_guide_clears; off it is neutral, so no configuration stored before it moves
+    assert config_hash(off.replace(centre_guide_clears=True).to_dict()) == config_hash(off.to_dict())
+    assert config_hash(kept_off.replace(centre_guide_clears=True).to_dict()) == config_hash(off.replace(**mw).to_dict())
+    assert config_hash(guide.replace(centre_guide_clears=True).to_dict()) != config_hash(guide.to_dict())
+    assert "centre_guide_clears" not in effective(guide.to_dict())
 
 
 def test_a_backbone_name_keeps_one_meaning(tmp_path):
