@@ -407,7 +407,6 @@ class PhysVLAConfig:
     carry_clear_m: float = 0.05
     # centre_guide (core/corrections/centre_guide.py)
     centre_guide: bool = True
-    centre_guide_clears: bool = False
     centre_guide_trailing: bool = False
     # grasp_guidance (core/corrections/grasp_guidance.py)
     beta: float = 0.0
@@ -457,6 +456,7 @@ class PhysVLAConfig:
     centre_guide_once: bool = False
     centre_guide_yield_steps: int = 0
     centre_guide_straddle: bool = False
+    centre_guide_clears: bool = False
     rim_guide_into_grasp: bool = False
     lowpass_speed_hi: float = 0.0
 

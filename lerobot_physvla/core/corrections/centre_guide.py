@@ -39,7 +39,8 @@ across (beyond the paper; centre_guide). centre_guide_approach runs the same ker
     its corners. Traced: LIBERO-Object's cream cheese box (r 4.06 cm, w_o 2.13 cm, 1.8 cm tall; span / 2 4.0 cm)
     under the competent camera ACT: pulled to the centre the hand stops 1.3 cm over the box's origin with the
     pads on it and the close misses; left at its own 1.9 cm off the origin it goes down to 1.0 cm and lifts
-    the box (docs/decisions/38-centre-guide-clears.md).
+    the box. Failed its confirmation (docs/decisions/38-centre-guide-clears.md): the jittered shape expert, which
+    aims beside those boxes, lost 10 pairs against the guide that centres it; experimental, in no preset.
     pose error (pose_error_m = e): the pull aims the hand at the object's pose, so e moves the grasp by up to e;
     it pulls only while e < span / 2 - w_o (CENTRE_SLACK_M: the room an open hand has on either side of the
     object across its narrower side), and leaves the hand to the policy beyond.
@@ -150,7 +151,8 @@ CORRECTION = Correction("centre_guide", GRASP, 3, centre_guide,
                                 Field("centre_guide_clears", bool, False, False, "the centre guide pulls only an "
                                       "object the open hand clears in every orientation (its horizontal radius at "
                                       "most half the hand's opening): the state carries no yaw, so a longer one's "
-                                      "grasp side is left to the policy"),
+                                      "grasp side is left to the policy", experimental="failed its confirmation, in "
+                                      "no preset: docs/decisions/38-centre-guide-clears.md"),
                                 Field("centre_guide_trailing", bool, False, True, "the centre guide also pulls "
                                       "where the action moves a target the hand trails (a layout step_gain below "
                                       "1, MetaWorld's mocap), at that gain; false: it is off on such a layout"),),
