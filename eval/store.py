@@ -42,10 +42,10 @@ POSE_SOURCE = "pose_source"  # ... and where its poses come from ("markers": the
 def effective(config: dict) -> dict:
     """The configuration as it acts: a full PhysVLAConfig dict, with the low-pass's parameters reset when the
     low-pass is off, release_assist_error_k when no pose error is told, centre_guide_straddle and centre_guide_clears
-    where the guide is off, and centre_guide_trailing where the guide is off or the layout's step gain is 1 (they cannot change an action
-    then; a guide kept off a trailing-target layout is the guide off), the NEUTRAL fields left out where neutral,
-    and the perception faults between the scene and the corrector (`perception`) and the pose source
-    (`pose_source`) where the study sets any."""
+    where the guide is off, and centre_guide_trailing where the guide is off or the layout's step gain is 1 (they
+    cannot change an action then; a guide kept off a trailing-target layout is the guide off), the NEUTRAL fields
+    left out where neutral, and the perception faults between the scene and the corrector (`perception`) and the
+    pose source (`pose_source`) where the study sets any."""
     from lerobot_physvla.core.config import PhysVLAConfig
 
     config = dict(config)

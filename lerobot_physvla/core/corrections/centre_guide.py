@@ -35,8 +35,8 @@ across (beyond the paper; centre_guide). centre_guide_approach runs the same ker
     (slack 1.9 cm) succeeds; centred, it closed higher and lost the box (docs/decisions/25-centre-guide.md).
     clears (centre_guide_clears): an object the open hand does not clear in every orientation (its horizontal
     radius, the half-diagonal of a box, above span / 2) is not pulled: the state carries no yaw, so which of its
-    sides the hand closes across is the policy's, and a centred hand closing along its length lands its pads on
-    its corners. Traced: LIBERO-Object's cream cheese box (r 4.06 cm, w_o 2.13 cm, 1.8 cm tall; span / 2 4.0 cm)
+    sides the hand closes across is the policy's, and a centred hand closing along its length lands its fingers on
+    it. Traced: LIBERO-Object's cream cheese box (r 4.06 cm, w_o 2.13 cm, 1.8 cm tall; span / 2 4.0 cm)
     under the competent camera ACT: pulled to the centre the hand stops 1.3 cm over the box's origin with the
     pads on it and the close misses; left at its own 1.9 cm off the origin it goes down to 1.0 cm and lifts
     the box. Failed its confirmation (docs/decisions/38-centre-guide-clears.md): the jittered shape expert, which
