@@ -35,7 +35,7 @@ import numpy as np
 from numba import njit
 
 from lerobot_physvla.core.corrections import CORRECTIONS, slots
-from lerobot_physvla.core.corrections.approach_veto import MEETS, MEETS_ONSET, timed_close
+from lerobot_physvla.core.corrections.approach_veto import MEETS, MEETS_ONSET, held_to_top, timed_close
 from lerobot_physvla.core.corrections.base import (D_OBJ_XY, D_TGT_XY, EEF, FINGERS, HIGH, LIFT, LOW, N_GEO, OBJ,
                                                    PHASE_REF_OBJECT, POSE_MAX_AGE, POSE_NOISE_M, TGT)
 from lerobot_physvla.core.corrections.release_veto import RELEASE_CARRY, carried_phase
@@ -167,7 +167,8 @@ def _compile(key: int):
                 continue
             q, dg = p, d_grasp
             veto_i[0], veto_i[1] = veto[0], veto[1]
-            if measured(row, o[6]):  # the distances of this env's scene
+            on_scene = measured(row, o[6])
+            if on_scene:  # the distances of this env's scene
                 dg = scene_distances(row, o[6], p, pe, veto[2:4], veto_i)
                 q = pe
             for k in range(3):
@@ -196,6 +197,8 @@ def _compile(key: int):
                 if t_close > 0.0 and w > 0.0 and span > w:
                     t_meet = t_close * min(max((row[FINGERS_AT] - w) / (span - w), 0.0), 1.0)
             geo[i, 6] = timed_close(a_raw[i], idx, q, ph, geo[i, 3], v_z, veto_i[0], t_meet, mem[i], commit)
+            if on_scene and held_to_top(a_raw[i], idx, q, mem[i]):  # approach_veto.py: held until the pads' centres
+                geo[i, 4] = veto_i[0] - row[o[6] + 6]  # are at the object's top (the veto height less pad_h)
             if temporal:
                 temporal_row(a_raw[i], a_phys[i], idx, g, q, mem[i], commit)
             else:

@@ -35,6 +35,12 @@ hold it?
 it while the close lasts (as the timed close does): a close begun where it could not meet the object (a premature
 close held since the approach, then carried down by the descent) stays held step by step.
 
+`veto_hold_to_top` (HOLD_TO_TOP) keeps a close the height veto held at its onset (begun above the veto height, not
+timed) held until the hand is at the object's top: the pads' centres level with it, half a pad on the object, rather
+than their lower edges touching it (the veto height, top + pad_h). A policy that begins its close early and then
+creeps down, believing it is closing, is otherwise let close with its pads' lower edges on the top of a flat box
+(LIBERO's cream cheese box: top 0.89 cm over its origin) and lifts nothing. Only where the scene is measured.
+
 A hand at rest (v_z = 0) gives the height veto exactly. A state with no close time (NaN: a robot, a source that
 does not simulate its gripper, an object the hand cannot close across) or no scene leaves the height veto as it is.
 
@@ -51,9 +57,12 @@ from lerobot_physvla.core.corrections import slots
 from lerobot_physvla.core.corrections.base import GRIPPER, GRIPPER_CLOSED, GRIPPER_OPEN, Correction, Field
 from lerobot_physvla.core.phase import APPROACH, GRASP
 
-PARAMS = ("CLOSE_S", "MEETS", "MEETS_ONSET")  # veto_close_lead_s (s, 0: off); close_meets, close_meets_onset (1: on)
-MEMORY = (("VETO_CLOSE", 1),)  # the policy's current close: 0 none, 1 timed to the descent, 2 judged step by step
-(CLOSE_S, MEETS, MEETS_ONSET) = slots.params(__file__)
+# veto_close_lead_s (s, 0: off); close_meets, close_meets_onset, veto_hold_to_top (1: on)
+PARAMS = ("CLOSE_S", "MEETS", "MEETS_ONSET", "HOLD_TO_TOP")
+# the policy's current close: 0 none, 1 timed to the descent, 2 judged step by step, 3 judged step by step and begun
+# above the veto height (held from its onset)
+MEMORY = (("VETO_CLOSE", 1),)
+(CLOSE_S, MEETS, MEETS_ONSET, HOLD_TO_TOP) = slots.params(__file__)
 (VETO_CLOSE,) = slots.memory(__file__)
 
 
@@ -100,15 +109,26 @@ def _timed(a_raw, idx, p, phase, height, v_z, veto_height, t_meet, mem, commit):
                  and height + min(v_z, 0.0) * p[CLOSE_S] <= veto_height)
         timed = timed or (p[MEETS_ONSET] > 0.5 and phase == GRASP and veto_height > 0.0 and height > veto_height
                           and t_meet >= 0.0 and height + min(v_z, 0.0) * t_meet <= veto_height)
-        state = 1.0 if timed else 2.0
+        state = 1.0 if timed else (3.0 if veto_height > 0.0 and height > veto_height else 2.0)
         if commit:
             mem[VETO_CLOSE] = state
     return 1.0 if state < 1.5 else 0.0
 
 
+@njit(error_model="numpy")
+def held_to_top(a_raw, idx, p, mem) -> bool:
+    """veto_hold_to_top: the policy's close goes on, and the height veto held it at its onset (module doc)."""
+    g = idx[GRIPPER]
+    if g < 0 or not p[HOLD_TO_TOP] > 0.5 or mem[VETO_CLOSE] < 2.5:
+        return False
+    c = 0.5 * (p[GRIPPER_OPEN] + p[GRIPPER_CLOSED])
+    return (a_raw[g] - c) * (p[GRIPPER_OPEN] - c) < 0.0
+
+
 CORRECTION = Correction("approach_veto", APPROACH, 0, approach_veto, values={"CLOSE_S": lambda c, lay: c.veto_close_lead_s,
                                                                        "MEETS": lambda c, lay: float(c.close_meets),
-                                                                       "MEETS_ONSET": lambda c, lay: float(c.close_meets_onset)},
+                                                                       "MEETS_ONSET": lambda c, lay: float(c.close_meets_onset),
+                                                                       "HOLD_TO_TOP": lambda c, lay: float(c.veto_hold_to_top)},
                         fields=(Field("veto_close_lead_s", float, 0.0, 0.0, "the gripper veto leaves alone a close the "
                                       "policy begins above the veto height while coming down fast enough to be there "
                                       "this many seconds later (the fingers' closing time), s; 0 = off",
@@ -119,7 +139,10 @@ CORRECTION = Correction("approach_veto", APPROACH, 0, approach_veto, values={"CL
                                       experimental="judged every step, failed its confirmation, in no preset: docs/decisions/28-close-meets.md"),
                                 Field("close_meets_onset", bool, False, False, "the same judgement made once, at the "
                                       "step the policy begins its close, and kept while the close lasts: a close begun "
-                                      "where it could not meet the object (a premature one) stays held")),
+                                      "where it could not meet the object (a premature one) stays held"),
+                                Field("veto_hold_to_top", bool, False, False, "a close the height veto holds at its "
+                                      "onset stays held until the hand is at the object's top (the pads' centres level "
+                                      "with it), not the pads' lower edges; a measured scene only (module doc)")),
                         check=lambda c: _check(c))
 
 
