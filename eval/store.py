@@ -31,7 +31,8 @@ NEUTRAL = {"pose_error_m": 0.0, "pose_max_age_steps": 5, "geometry": "fixed", "v
            "close_meets_onset": False, "approach_pull_m": 0.0, "centre_guide_straddle": False, "carry_far_m": 0.0,
            "approach_pull_stall_steps": 0, "approach_pull_handback": False,
            "approach_pull_open_handback": False, "approach_pull_heading_u": 0.0,
-           "carry_clear_m": 0.0, "centre_guide_clears": False, "veto_hold_to_top": False}
+           "carry_clear_m": 0.0, "centre_guide_clears": False, "veto_hold_to_top": False,
+           "lift_assist_needs_close": False}
 # fields renamed after episodes were first stored (core/config.py ALIASES): hashed under their first names, and
 # the saved form's `version` left out, so a rename or a new version keeps every configuration's hash
 HASHED_AS = {"place_tol_m": "redirect_tol_m", "place_gain": "redirect_gain"}

@@ -288,7 +288,7 @@ PAPER: dict = {f.name: f.paper for f in FIELDS if f.paper != f.default}
 # from_dict brings a saved dict up one version at a time (UPGRADES[v]: its renamed fields, then the fields it lacks
 # at the value that keeps it acting as it did), then fills what is still unnamed from the shipped default. Adding a
 # field means a new version: CONFIG_VERSION + 1 and an UPGRADES entry giving the field's value from before it.
-CONFIG_VERSION = 11
+CONFIG_VERSION = 12
 SAVED_V0 = frozenset({"alpha_temporal", "alpha_transport", "beta", "cap", "chunk", "d_thresh_m", "delta_grasp_m",
                       "dls_damping", "el_mode", "eps_nm", "grasp_offset_m", "gripper_rule", "h_lift_m", "layout",
                       "lift_bias_m", "mode", "r0_nm", "weighting"})
@@ -299,7 +299,8 @@ ALIASES: dict[str, str] = {"redirect_tol_m": "place_tol_m", "redirect_gain": "pl
 # Version 1 -> 2: approach_pull_m, at 0 (off) as before it existed; 2 -> 3: centre_guide_straddle, off; 3 -> 4:
 # carry_far_m, at 0 (off); 4 -> 5: approach_pull_stall_steps, at 0 (off); 5 -> 6: approach_pull_handback, off; 6 -> 7:
 # approach_pull_open_handback, off; 7 -> 8: approach_pull_heading_u, at 0 (off);
-# 8 -> 9: carry_clear_m, at 0 (off); 9 -> 10: centre_guide_clears, off; 10 -> 11: veto_hold_to_top, off.
+# 8 -> 9: carry_clear_m, at 0 (off); 9 -> 10: centre_guide_clears, off; 10 -> 11: veto_hold_to_top, off;
+# 11 -> 12: lift_assist_needs_close, off.
 UPGRADES: dict[int, tuple[dict, dict]] = {0: (ALIASES, PAPER), 1: ({}, {"approach_pull_m": 0.0}),
                                           2: ({}, {"centre_guide_straddle": False}), 3: ({}, {"carry_far_m": 0.0}),
                                           4: ({}, {"approach_pull_stall_steps": 0}),
@@ -308,7 +309,8 @@ UPGRADES: dict[int, tuple[dict, dict]] = {0: (ALIASES, PAPER), 1: ({}, {"approac
                                           7: ({}, {"approach_pull_heading_u": 0.0}),
                                           8: ({}, {"carry_clear_m": 0.0}),
                                           9: ({}, {"centre_guide_clears": False}),
-                                          10: ({}, {"veto_hold_to_top": False})}
+                                          10: ({}, {"veto_hold_to_top": False}),
+                                          11: ({}, {"lift_assist_needs_close": False})}
 _WARNED: set = set()
 
 
@@ -416,6 +418,7 @@ class PhysVLAConfig:
     # lift_assist (core/corrections/lift_assist.py)
     lift_assist_u: float = 0.5
     lift_assist_at_rest: bool = True
+    lift_assist_needs_close: bool = False
     # place_deceleration (core/corrections/place_deceleration.py)
     d_thresh_m: float = 0.08
     # release_assist (core/corrections/release_assist.py)

@@ -25,6 +25,7 @@ height (metres):
     release tol   max(w_t - r, 0) + pad_w  the object's edge within the target's, give or take a
                                          pad's half width (how far a still hand's release lands)  bowl/plate 2.28 cm (2)
     carry reach   max(CARRY_REACH_M, hypot(r, top) + pad_w)  the object's far end is still at the hand  bowl 10 cm (10)
+    open hand     span - FINGERS_M       the lift assist's hold ends short of this (lift_assist_needs_close)
 
 (in brackets: the fixed value it replaces). A distance the configuration turns off (0) stays off, and the pose
 error the corrections are told (pose_error_m) is added where it is added to the fixed ones. A state without
@@ -39,6 +40,7 @@ from numba import njit
 
 from lerobot_physvla.core.corrections.base import POSE_ERROR_M
 from lerobot_physvla.core.corrections.centre_guide import CENTRE_CLEARS, CENTRE_SLACK_M, NO_PULL_M
+from lerobot_physvla.core.corrections.lift_assist import FINGERS_M, LIFT_OPEN_M
 from lerobot_physvla.core.corrections.place_redirect import PLACE_TOL_M
 from lerobot_physvla.core.corrections.release_veto import CARRY_REACH_M
 from lerobot_physvla.core.corrections.rim_guide import RIM_GUIDE_M, RIM_HEIGHT_M, RIM_REACH_M, RIM_SLACK_M
@@ -85,6 +87,8 @@ def scene_distances(row, o_scene, p, pe, veto_cfg, veto_out):
     if p[PLACE_TOL_M] > 0.0:
         pe[PLACE_TOL_M] = max(w_t - r, 0.0) + pad_w
     pe[CARRY_REACH_M] = max(p[CARRY_REACH_M], math.hypot(r, top) + pad_w)
+    if p[LIFT_OPEN_M] < 0.0:  # lift_assist_needs_close: fingers this far apart are wide open, holding nothing
+        pe[LIFT_OPEN_M] = span - FINGERS_M
     veto_out[0] = top + pad_h + e if veto_cfg[0] > 0.0 else 0.0
     if veto_cfg[1] > 0.0:
         veto_out[1] = r + 0.5 * span + pad_w + e

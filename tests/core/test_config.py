@@ -191,13 +191,13 @@ def test_the_class_is_a_plain_dataclass_that_agrees_with_the_declarations():
     assert PhysVLAConfig.__doc__.startswith("The corrector's configuration.")
 
 
-# The fields of version 11 of the saved form (core/config.py CONFIG_VERSION; version 1 lacked approach_pull_m, 2 centre_guide_straddle, 3 carry_far_m, 4 approach_pull_stall_steps, 5 approach_pull_handback, 6 approach_pull_open_handback, 7 approach_pull_heading_u, 8 carry_clear_m, 9 centre_guide_clears, 10 veto_hold_to_top). A field added or renamed needs a new
+# The fields of version 12 of the saved form (core/config.py CONFIG_VERSION; version 1 lacked approach_pull_m, 2 centre_guide_straddle, 3 carry_far_m, 4 approach_pull_stall_steps, 5 approach_pull_handback, 6 approach_pull_open_handback, 7 approach_pull_heading_u, 8 carry_clear_m, 9 centre_guide_clears, 10 veto_hold_to_top, 11 lift_assist_needs_close). A field added or renamed needs a new
 # version: CONFIG_VERSION + 1, an UPGRADES entry (its value from before it), and this list for the new version.
-FIELDS_V11 = ('alpha_temporal', 'alpha_transport', 'approach_pull_handback', 'approach_pull_heading_u', 'approach_pull_m', 'approach_pull_open_handback', 'approach_pull_stall_steps', 'assist_steps', 'assist_still', 'beta', 'cap', 'carry_clear_m', 'carry_far_m',
+FIELDS_V12 = ('alpha_temporal', 'alpha_transport', 'approach_pull_handback', 'approach_pull_heading_u', 'approach_pull_m', 'approach_pull_open_handback', 'approach_pull_stall_steps', 'assist_steps', 'assist_still', 'beta', 'cap', 'carry_clear_m', 'carry_far_m',
              'centre_guide', 'centre_guide_clears',
              'centre_guide_once', 'centre_guide_straddle', 'centre_guide_trailing', 'centre_guide_yield_steps', 'chunk', 'chunk_phase_caps',
              'close_meets', 'close_meets_onset', 'd_thresh_m', 'delta_grasp_m', 'dls_damping', 'el_mode', 'eps_nm',
-             'geometry', 'grasp_offset_m', 'gripper_rule', 'h_lift_m', 'hold_steps', 'layout', 'lift_assist_at_rest',
+             'geometry', 'grasp_offset_m', 'gripper_rule', 'h_lift_m', 'hold_steps', 'layout', 'lift_assist_at_rest', 'lift_assist_needs_close',
              'lift_assist_u', 'lift_bias_m', 'lowpass', 'lowpass_alpha_max', 'lowpass_lag', 'lowpass_phases',
              'lowpass_rough', 'lowpass_rough_hi', 'lowpass_rough_lo', 'lowpass_space', 'lowpass_speed_hi', 'mode',
              'phase_caps', 'phase_ref', 'place_gain', 'place_rule', 'place_tol_m', 'pose_error_m', 'pose_max_age_steps',
@@ -209,8 +209,8 @@ FIELDS_V11 = ('alpha_temporal', 'alpha_transport', 'approach_pull_handback', 'ap
 def test_the_saved_form_is_versioned_and_a_new_field_needs_a_new_version():
     from lerobot_physvla.core.config import CONFIG_VERSION, FIELDS, UPGRADES
 
-    assert CONFIG_VERSION == 11 and set(UPGRADES) == set(range(CONFIG_VERSION))
-    assert tuple(sorted(f.name for f in FIELDS)) == FIELDS_V11, "a field changed: bump CONFIG_VERSION, add an upgrade"
+    assert CONFIG_VERSION == 12 and set(UPGRADES) == set(range(CONFIG_VERSION))
+    assert tuple(sorted(f.name for f in FIELDS)) == FIELDS_V12, "a field changed: bump CONFIG_VERSION, add an upgrade"
     assert PhysVLAConfig(cap=0.1).to_dict()["version"] == CONFIG_VERSION
     with pytest.raises(ValueError, match="upgrade lerobot-physvla"):
         PhysVLAConfig.from_dict({"version": CONFIG_VERSION + 1, "cap": 0.1})

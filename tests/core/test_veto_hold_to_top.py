@@ -62,3 +62,23 @@ def test_off_in_every_preset():
     for name in ("default", "smooth", "shift", "arm", "paper"):
         assert preset(name).veto_hold_to_top is False
     assert PhysVLAConfig.from_dict({"version": 10, "cap": 0.1}).veto_hold_to_top is False
+
+
+def _hold(fingers, on, scene=True, steps=15):
+    """A still hand 1.2 cm over the box with the close commanded (held open by the veto or not), its z commands."""
+    c = Corrector(PhysVLAConfig.from_dict({**preset("default").to_dict(), "veto_hold_to_top": True,
+                                           "lift_assist_needs_close": on}))
+    st = _state(0.012, scene)
+    st.gripper[:] = fingers
+    return [c(np.array([[0.0, 0.0, -0.02, 0.0, 0.0, 0.0, 1.0]]), st)[0, 2] for _ in range(steps)]
+
+
+def test_the_lift_assist_lifts_no_hand_held_wide_open_with_lift_assist_needs_close():
+    """lift_assist_needs_close (corrections/lift_assist.py): fingers at the hand's span, held open while the policy
+    commands its close, are not a hold; fingers stopped on the box are; without a measured scene, as before."""
+    steps = preset("default").assist_steps
+    wide, on_box = 0.0799, 0.0426  # m: the Panda's span less 0.1 mm; the box's narrower width
+    assert _hold(wide, on=False)[steps - 1:] == [0.5] * (16 - steps)  # as shipped: a wide-open hand is lifted
+    assert _hold(wide, on=True) == [-0.02] * 15  # held open: no hold, no lift
+    assert _hold(on_box, on=True)[steps - 1:] == [0.5] * (16 - steps)  # fingers on the box: lifted
+    assert _hold(wide, on=True, scene=False)[steps - 1:] == [0.5] * (16 - steps)  # no span known: as before

@@ -1,7 +1,9 @@
 """Grasp: a lift for a policy that holds the object and stays still without lifting it (beyond the
 paper; lift_assist_u > 0).
 
-    holding:  gripper commanded closed, fingers stopped >= FINGERS_M apart     (something between them)
+    holding:  gripper commanded closed, fingers stopped >= FINGERS_M apart     (something between them;
+              with lift_assist_needs_close, on a measured scene, also >= FINGERS_M short of the hand's span:
+              fingers the gripper veto holds wide open hold nothing)
     still:    |p_eef - p_eef(hold began)| <= STILL_M and |fingers - fingers(hold began)| <= FINGER_STILL_M
     at rest:  p_obj_z - z_rest >= -(REST_M + e)          (lift_assist_at_rest only: not carried below its rest;
                                                            e = pose_error_m, so an error alone never says "below")
@@ -34,10 +36,12 @@ from lerobot_physvla.core.corrections.base import (EEF, FINGERS, GRIPPER, GRIPPE
 from lerobot_physvla.core.corrections.release_assist import STILL_M
 from lerobot_physvla.core.phase import GRASP
 
-PARAMS = ("LIFT_ASSIST_U", "LIFT_AT_REST", "LIFT_ASSIST_STEPS")  # the z command, action units; 1.0: at rest only; steps held
+# the z command, action units; 1.0: at rest only; steps held; the opening at which the hand is open, holding nothing
+# (m; 0: not judged; -1: lift_assist_needs_close, from the scene: core/geometry.py writes span - FINGERS_M)
+PARAMS = ("LIFT_ASSIST_U", "LIFT_AT_REST", "LIFT_ASSIST_STEPS", "LIFT_OPEN_M")
 # steps held still unlifted (>= the steps: lifting; -1: spent); the hand (m, xyz) and the fingers' opening (m) where it began
 MEMORY = (("LIFT_STALL", 1), ("LIFT_ANCHOR", 4))
-LIFT_ASSIST_U, LIFT_AT_REST, ASSIST_STEPS = slots.params(__file__)
+LIFT_ASSIST_U, LIFT_AT_REST, ASSIST_STEPS, LIFT_OPEN_M = slots.params(__file__)
 LIFT_STALL, LIFT_ANCHOR = slots.memory(__file__)
 
 FINGERS_M = 0.0025  # fingers stopped at least this far apart: they hold something, metres
@@ -68,6 +72,7 @@ def lift_assist(a_raw, a_phys, idx, geo, p, mem, commit):
             mem[LIFT_STALL] = -1.0
         return
     held = geo[FINGERS] >= FINGERS_M and (p[LIFT_AT_REST] < 0.5 or geo[LIFT] >= -(REST_M + p[POSE_ERROR_M]))
+    held = held and not (p[LIFT_OPEN_M] > 0.0 and geo[FINGERS] >= p[LIFT_OPEN_M])  # held open: no hold
     if held and n > 0.0:  # its first step is still by definition
         moved = 0.0
         for k in range(3):
@@ -92,12 +97,14 @@ def lift_assist_commit(phase, geo, p, mem):
 
 CORRECTION = Correction("lift_assist", GRASP, 1, lift_assist, values={
     "LIFT_ASSIST_U": lambda c, lay: c.lift_assist_u, "LIFT_AT_REST": lambda c, lay: c.lift_assist_at_rest,
-    "LIFT_ASSIST_STEPS": lambda c, lay: c.assist_steps},
+    "LIFT_ASSIST_STEPS": lambda c, lay: c.assist_steps, "LIFT_OPEN_M": lambda c, lay: -1.0 if c.lift_assist_needs_close else 0.0},
     on=lambda c: c.lift_assist_u > 0.0, commit=lift_assist_commit,
     pose="its at-rest check allows pose_error_m more below the rest (the lift it commands is the hand's own)",
     fields=(Field("lift_assist_u", float, 0.5, 0.0, "the z command a still, closed, unlifted hold is raised to, "
                   "action units; 0 = off"),
-            Field("lift_assist_at_rest", bool, True, False, "lift only an object at its resting height or above")),
+            Field("lift_assist_at_rest", bool, True, False, "lift only an object at its resting height or above"),
+            Field("lift_assist_needs_close", bool, False, False, "a hold is fingers closed from wide open: a hand "
+                  "the gripper veto holds open is not lifted; a measured scene only (module doc)")),
     check=lambda c: _check(c))
 
 
