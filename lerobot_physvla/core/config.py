@@ -405,7 +405,7 @@ class PhysVLAConfig:
     approach_pull_heading_u: float = 0.3
     # approach_veto (core/corrections/approach_veto.py)
     close_meets_onset: bool = False
-    veto_hold_to_top: bool = False
+    veto_hold_to_top: bool = True
     # carry_to_target (core/corrections/carry_to_target.py)
     carry_far_m: float = 0.10
     carry_clear_m: float = 0.05
@@ -418,7 +418,7 @@ class PhysVLAConfig:
     # lift_assist (core/corrections/lift_assist.py)
     lift_assist_u: float = 0.5
     lift_assist_at_rest: bool = True
-    lift_assist_needs_close: bool = False
+    lift_assist_needs_close: bool = True
     # place_deceleration (core/corrections/place_deceleration.py)
     d_thresh_m: float = 0.08
     # release_assist (core/corrections/release_assist.py)
@@ -645,7 +645,9 @@ PRESETS: dict[str, PhysVLAConfig] = {
     # object, standing there (not on its way to it), to the object and carries what it lifts over the target, and
     # the carry to the target, which carries an object the policy lowers 10 cm or more from the target over it,
     # never lower than 5 cm over where it rested, with the transport phase given the authority for the carry and
-    # its smoothing and lift bias the identity (docs/decisions/29, 30, 35, 36)
+    # its smoothing and lift bias the identity (docs/decisions/29, 30, 35, 36); a close the height veto holds at its
+    # onset is held until the pads' centres are at the object's top, and a hand held wide open is no hold for the
+    # lift assist (docs/decisions/39)
     "default": PhysVLAConfig(),
 }
 # The default's fields before the approach pull and the carry joined it (docs/decisions/36-shift-shipped.md): the
@@ -653,13 +655,16 @@ PRESETS: dict[str, PhysVLAConfig] = {
 BEFORE_PULL: dict = {"approach_pull_m": 0.0, "approach_pull_heading_u": 0.0, "carry_far_m": 0.0,
                      "carry_clear_m": 0.0, "phase_caps": (1.0, 1.0, 0.0, 1.0), "alpha_transport": 0.92,
                      "lift_bias_m": 0.02}
+# ... and before a close held at its onset was held to the object's top, with the lift assist taking no wide-open
+# hand for a hold (docs/decisions/39-hold-to-top.md)
+BEFORE_HOLD: dict = {"veto_hold_to_top": False, "lift_assist_needs_close": False}
 # on robot arms (lerobot-rollout): the approach veto alone. The release veto, let go the moment the
 # held object is within 2 cm of the target, flung blocks the simulated SO-101 carried at transport
 # speed (eval/results/so101_faults), so it stays off on arms until a rule that knows the object's
 # speed and height is measured. The lift assist (candidate 15) and the rim guide (candidate 18) are off
 # there too: they were measured on LIBERO's delta-pose arm and its bowls only, and they would move the
 # arm with the grasp and approach phases' authority; so is the centre guide, measured in simulation only.
-PRESETS["arm"] = PRESETS["default"].replace(**{**BEFORE_PULL, "phase_caps": (0.0, 0.0, 0.0, 0.0)},
+PRESETS["arm"] = PRESETS["default"].replace(**{**BEFORE_PULL, **BEFORE_HOLD, "phase_caps": (0.0, 0.0, 0.0, 0.0)},
                                             place_rule="decelerate", release_assist_m=0.0, lift_assist_u=0.0,
                                             lift_assist_at_rest=False, rim_guide_m=0.0, centre_guide=False, beta=0.5)
 # for a policy that shakes: the default + a low-pass before and after the carry whose strength follows
@@ -669,7 +674,7 @@ PRESETS["arm"] = PRESETS["default"].replace(**{**BEFORE_PULL, "phase_caps": (0.0
 # noise sweeps' jerk-degradation ratio 3.96 / 4.78 (the paper's Table A1 asks ~10), every learned ACT
 # within 1 pair of the default; the trade: the jittery expert succeeds 6 pp less than under the
 # default (2 won / 5 lost), which is why it is not the default.
-PRESETS["smooth"] = PRESETS["default"].replace(**BEFORE_PULL, lowpass="adaptive", lowpass_space="target",
+PRESETS["smooth"] = PRESETS["default"].replace(**BEFORE_PULL, **BEFORE_HOLD, lowpass="adaptive", lowpass_space="target",
                                                lowpass_alpha_max=0.8, lowpass_rough="median",
                                                lowpass_phases="approach,grasp,place")
 # `shift`: the name the default's approach pull and carry had while they were opt-in

@@ -1,6 +1,6 @@
 import pytest
 
-from lerobot_physvla.core.config import BEFORE_PULL, FETCH_4D, LIBERO_OSC_POSE, ActionLayout, PhysVLAConfig
+from lerobot_physvla.core.config import BEFORE_HOLD, BEFORE_PULL, FETCH_4D, LIBERO_OSC_POSE, ActionLayout, PhysVLAConfig
 
 # what a configuration saved before these fields existed holds for them (the paper's values: how it acted then):
 # fixed distances, the release assist within its tolerance alone, no centre guide
@@ -37,7 +37,7 @@ def test_configurations_saved_before_load_as_they_were():
     assert PhysVLAConfig.from_dict(old["steps"][0]["config"]["config"]) == PhysVLAConfig.paper()
     for name in ("default", "smooth", "paper"):
         saved = json.loads((fixtures / f"saved_before_0_2/preset_{name}/policy_postprocessor.json").read_text())
-        then = PRESETS[name].replace(**BEFORE, **(BEFORE_PULL if name == "default" else {}))
+        then = PRESETS[name].replace(**BEFORE, **({**BEFORE_PULL, **BEFORE_HOLD} if name == "default" else {}))
         assert PhysVLAConfig.from_dict(saved["steps"][-1]["config"]["config"]) == then, name
     robot = json.loads((fixtures / "saved_before_0_2/robot_arm_so101/physvla_robot_processor.json").read_text())
     step = robot["steps"][-1]
@@ -88,16 +88,20 @@ def test_presets_follow_the_paper_and_the_default_is_built_from_the_options():
     assert PRESETS["paper_alg1"].cap == 1.0 and PRESETS["paper_alg1"].mode == "phys_el"
     assert preset("paper", mode="phys") == PhysVLAConfig.paper(mode="phys")
     assert DEFAULT_PRESET in PRESETS
-    # smooth: the default before the approach pull and the carry joined it, and the low-pass, nothing else changed
+    # smooth: the default before the approach pull, the carry and the held close joined it, and the low-pass, nothing
+    # else changed
     assert PRESETS["smooth"].replace(lowpass="off", lowpass_space="action", lowpass_alpha_max=0.6, lowpass_rough="ema",
                                      lowpass_phases=PhysVLAConfig.paper().lowpass_phases) == PRESETS["default"].replace(
-                                         **BEFORE_PULL)
+                                         **BEFORE_PULL, **BEFORE_HOLD)
     # the default: the approach pull and the carry with the authority they need (docs/decisions/36-shift-shipped.md);
     # `shift` is its former name
     d = PRESETS["default"]
     assert (d.approach_pull_m, d.approach_pull_heading_u, d.carry_far_m, d.carry_clear_m) == (0.10, 0.3, 0.10, 0.05)
     assert (d.phase_caps, d.alpha_transport, d.lift_bias_m) == ((1.0, 1.0, 1.0, 1.0), 0.0, 0.0)
     assert PRESETS["shift"] == d and PhysVLAConfig() == d
+    # and the held close (docs/decisions/39-hold-to-top.md): on in the default alone
+    assert (d.veto_hold_to_top, d.lift_assist_needs_close) == (True, True)
+    assert all(not (PRESETS[n].veto_hold_to_top or PRESETS[n].lift_assist_needs_close) for n in ("smooth", "arm", "paper"))
     assert PRESETS["smooth"].lowpass_mask == (True, True, False, True)  # none while an object is carried
     with pytest.raises(ValueError, match="unknown preset"):
         preset("turbo")
@@ -220,9 +224,11 @@ def test_a_partial_configuration_fills_from_the_shipped_default_and_a_saved_file
     from lerobot_physvla.core.config import PRESETS, SAVED_V0
 
     assert PhysVLAConfig.from_dict({"mode": "phys_el"}) == PRESETS["default"].replace(mode="phys_el")
-    # version 1 had no approach pull or carry: they stay off, as then; every other field from the shipped default
+    # version 1 had no approach pull, carry or held close: they stay off, as then; every other field from the shipped
+    # default
     assert PhysVLAConfig.from_dict({"version": 1, "cap": 0.2}) == PRESETS["default"].replace(
-        cap=0.2, approach_pull_m=0.0, approach_pull_heading_u=0.0, carry_far_m=0.0, carry_clear_m=0.0)
+        cap=0.2, approach_pull_m=0.0, approach_pull_heading_u=0.0, carry_far_m=0.0, carry_clear_m=0.0, **BEFORE_HOLD)
+    assert PhysVLAConfig.from_dict({"version": 11, "cap": 0.2}).lift_assist_needs_close is False  # version 11 lacked it
     paper = PhysVLAConfig.paper().to_dict()
     v0 = {k: paper[k] for k in SAVED_V0}  # what 0.1 saved: these fields only, no version
     v0["redirect_tol_m"] = 0.01  # saved under its old name: renamed by the upgrade

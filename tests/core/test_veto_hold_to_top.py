@@ -25,7 +25,7 @@ def _state(height, scene=True):
 
 
 def _corrector(on):
-    return Corrector(PhysVLAConfig.from_dict({**preset("default").to_dict(), "veto_hold_to_top": on}))
+    return Corrector(PhysVLAConfig.from_dict({**preset("default").to_dict(), "veto_hold_to_top": on}))  # on by default
 
 
 def _gripper(c, h, raw=CLOSE, scene=True):
@@ -58,10 +58,13 @@ def test_without_a_measured_scene_the_height_veto_is_as_configured():
     assert _gripper(c, 0.05, scene=False) == 1.0  # below it: let go, the option has no top to hold to
 
 
-def test_off_in_every_preset():
-    for name in ("default", "smooth", "shift", "arm", "paper"):
-        assert preset(name).veto_hold_to_top is False
-    assert PhysVLAConfig.from_dict({"version": 10, "cap": 0.1}).veto_hold_to_top is False
+def test_on_in_the_default_alone_and_off_in_a_configuration_saved_before():
+    for name in ("default", "shift"):
+        assert preset(name).veto_hold_to_top and preset(name).lift_assist_needs_close
+    for name in ("smooth", "arm", "paper"):
+        assert not (preset(name).veto_hold_to_top or preset(name).lift_assist_needs_close)
+    old = PhysVLAConfig.from_dict({"version": 10, "cap": 0.1})
+    assert not (old.veto_hold_to_top or old.lift_assist_needs_close)
 
 
 def _hold(fingers, on, scene=True, steps=15):

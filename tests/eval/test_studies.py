@@ -25,7 +25,7 @@ import study as study_mod  # noqa: E402
 from store import Store, config_hash, effective  # noqa: E402
 from study import Study  # noqa: E402
 
-from lerobot_physvla.core.config import BEFORE_PULL, PRESETS, PhysVLAConfig  # noqa: E402
+from lerobot_physvla.core.config import BEFORE_HOLD, BEFORE_PULL, PRESETS, PhysVLAConfig  # noqa: E402
 
 # episode rows per study's data, as the per-unit files held them before they became data (efficacy: 16,935
 # records, 40 of them the same episodes run twice under two names with identical results, kept once)
@@ -108,8 +108,8 @@ def test_the_readme_rows_are_each_family_s_pairs_recomputed_from_the_episode_row
 def test_the_readme_calls_shipped_default_only_what_ships_and_footnotes_the_rest():
     """A README row unmarked ran the shipped default of this code: PhysVLAConfig() in the env's layout, plus the
     options its env type adds (MetaWorld's close_meets_onset); a row that ran an older default is marked, and its
-    footnote names how it differs (the LIBERO-Spatial rows: before the centre guide; before the approach pull and the
-    carry every row but MetaWorld's and the camera rows)."""
+    footnote names how it differs (every row: before the held close; the LIBERO-Spatial rows also before the centre
+    guide; every row but MetaWorld's and the camera rows also before the approach pull and the carry)."""
     from lerobot_physvla.core.config import so101_layout
     from lerobot_physvla.envs.metaworld_physvla import MetaworldPhysVLAEnvConfig
     from lerobot_physvla.sim.libero_pro import base_suite
@@ -133,13 +133,15 @@ def test_the_readme_calls_shipped_default_only_what_ships_and_footnotes_the_rest
         if mark:
             marked += 1
             (note,) = [x for x in readme.splitlines() if x.startswith(mark + " ")]
-            assert "`BEFORE_PULL`" in note and "the default before" in note and "approach pull" in note, note
+            assert "`BEFORE_HOLD`" in note and "the default before" in note and "held close" in note, note
+            if "MetaWorld" not in label and "Camera" not in label:
+                assert "`BEFORE_PULL`" in note and "approach pull" in note, note
             if "LIBERO-Spatial" in label:
                 assert "`centre_guide=false`" in note and "before the centre guide" in note, note
-    # the LIBERO-Spatial rows (no study ran the default with the centre guide there), and every row but MetaWorld's
-    # and the camera rows (no study ran the default with the approach pull and the carry against baseline there:
-    # docs/decisions/36)
-    assert marked == 5
+    # every row (no study ran the default with the held close against baseline on a README family: docs/decisions/39);
+    # the LIBERO-Spatial rows also before the centre guide, and every row but MetaWorld's and the camera rows before the
+    # approach pull and the carry (docs/decisions/36)
+    assert marked == 11
 
 
 def test_the_results_page_never_calls_an_older_default_the_shipped_default():
@@ -187,7 +189,7 @@ def test_the_presets_are_the_configurations_that_were_measured():
     scene (geometry = "scene"), which eval/studies/geometry_scene.toml confirmed against the fixed ones; the centre
     guide joined it after eval/studies/centre_guide_step_gain.toml's confirmation, the approach pull and the carry
     after shift_shipped's (test below)."""
-    before = dict(centre_guide=False, **BEFORE_PULL)  # the centre guide, pull and carry joined the default after these
+    before = dict(centre_guide=False, **BEFORE_PULL, **BEFORE_HOLD)  # all joined the default after these
     s = Study(study_mod.find("efficacy"))
     assert s.config_hash(headline.SHIPPED) == config_hash(PRESETS["default"].replace(geometry="fixed", **before).to_dict())
     assert s.config_hash(headline.SMOOTH) == config_hash(PRESETS["smooth"].replace(geometry="fixed", **before).to_dict())
@@ -211,8 +213,9 @@ def test_the_shift_preset_is_the_approach_pull_and_the_carry_their_studies_confi
     three studies' confirmations passes on their stored records (the decisions fixed in the study files)."""
     pull, carry = Study(study_mod.find("true_pose_pull")), Study(study_mod.find("carry_to_target"))
     clear = Study(study_mod.find("shift_heading_clear"))
-    assert clear.config_hash("shift + heading + clear") == config_hash(PRESETS["shift"].to_dict())
-    before = PRESETS["shift"].replace(approach_pull_heading_u=0.0, carry_clear_m=0.0)
+    shift = PRESETS["shift"].replace(**BEFORE_HOLD)  # the held close joined it after (docs/decisions/39)
+    assert clear.config_hash("shift + heading + clear") == config_hash(shift.to_dict())
+    before = shift.replace(approach_pull_heading_u=0.0, carry_clear_m=0.0)
     assert carry.config_hash("shift + carry") == clear.config_hash("shift") == config_hash(before.to_dict())
     assert carry.config_hash("shift") == pull.config_hash("default + approach pull") == config_hash(
         before.replace(carry_far_m=0.0).to_dict())
@@ -231,17 +234,39 @@ def test_the_default_is_shift_because_shift_shipped_passed_every_rule_on_the_sto
     the default is that `shift`; the `shift` before the heading and the clearance had failed shift_default's LIBERO
     comparison (record 32)."""
     ss = Study(study_mod.find("shift_shipped"))
-    assert ss.config_hash("shift") == config_hash(PRESETS["default"].to_dict()) == config_hash(PRESETS["shift"].to_dict())
+    then = PRESETS["default"].replace(**BEFORE_HOLD)  # the held close joined it after (docs/decisions/39, test below)
+    assert ss.config_hash("shift") == config_hash(then.to_dict()) == config_hash(PRESETS["shift"].replace(**BEFORE_HOLD).to_dict())
     assert ss.config_hash("shift on MetaWorld", "metaworld") == config_hash(
         ss.config("shift", "metaworld") | {"close_meets_onset": True})
-    assert ss.config_hash("shipped default") == config_hash(PRESETS["default"].replace(**BEFORE_PULL).to_dict())
+    assert ss.config_hash("shipped default") == config_hash(then.replace(**BEFORE_PULL).to_dict())
     rows = report.Rows(ss, run.rows_of(ss))
     assert [report.compare_verdict(ss, rows, c, "confirm") for c in ss.compares] == [True] * len(ss.compares) == [True] * 4
     sd = Study(study_mod.find("shift_default"))
-    assert sd.config_hash("shift") == config_hash(
-        PRESETS["default"].replace(approach_pull_heading_u=0.0, carry_clear_m=0.0).to_dict())
+    assert sd.config_hash("shift") == config_hash(then.replace(approach_pull_heading_u=0.0, carry_clear_m=0.0).to_dict())
     (libero,) = [c for c in sd.compares if "LIBERO" in c.name]
     assert report.compare_verdict(sd, report.Rows(sd, run.rows_of(sd)), libero, "confirm") is False
+
+
+def test_the_default_holds_a_held_close_to_the_top_because_veto_hold_to_top_passed_every_rule():
+    """docs/decisions/39-hold-to-top.md: veto_hold_to_top's candidate 2 (the held close held to the object's top, the
+    lift assist taking no wide-open hand for a hold) passed its design and every confirmation rule on the stored
+    records (the camera ACTs against the default before it and baseline, LIBERO's state policies, the SO-101 and
+    MetaWorld as its env runs it), so the default is that candidate; candidate 1 (the held close alone) failed its
+    design."""
+    h = Study(study_mod.find("veto_hold_to_top"))
+    assert h.config_hash("hold to top, closed hold") == config_hash(PRESETS["default"].to_dict())
+    assert h.config_hash("shipped default") == config_hash(PRESETS["default"].replace(**BEFORE_HOLD).to_dict())
+    assert h.config_hash("MetaWorld's default, hold to top, closed hold", "metaworld") == config_hash(
+        PhysVLAConfig(**h.scene_overrides["metaworld"], close_meets_onset=True).to_dict())
+    rows = report.Rows(h, run.rows_of(h))
+    two = [c for c in h.compares if c.candidate.endswith("closed hold")]
+    assert len(two) == 5
+    for c in two:
+        for role in ("design", "confirm"):
+            if c.blocks[role]:
+                assert report.compare_verdict(h, rows, c, role) is True, (c.name, role)
+    (one,) = [c for c in h.compares if c.candidate == "hold to top"]
+    assert report.compare_verdict(h, rows, one, "design") is False
 
 
 # ---------------------------------------------------------------------------------------------- store

@@ -140,7 +140,7 @@ CORRECTION = Correction("approach_veto", APPROACH, 0, approach_veto, values={"CL
                                 Field("close_meets_onset", bool, False, False, "the same judgement made once, at the "
                                       "step the policy begins its close, and kept while the close lasts: a close begun "
                                       "where it could not meet the object (a premature one) stays held"),
-                                Field("veto_hold_to_top", bool, False, False, "a close the height veto holds at its "
+                                Field("veto_hold_to_top", bool, True, False, "a close the height veto holds at its "
                                       "onset stays held until the hand is at the object's top (the pads' centres level "
                                       "with it), not the pads' lower edges; a measured scene only (module doc)")),
                         check=lambda c: _check(c))

@@ -103,7 +103,7 @@ CORRECTION = Correction("lift_assist", GRASP, 1, lift_assist, values={
     fields=(Field("lift_assist_u", float, 0.5, 0.0, "the z command a still, closed, unlifted hold is raised to, "
                   "action units; 0 = off"),
             Field("lift_assist_at_rest", bool, True, False, "lift only an object at its resting height or above"),
-            Field("lift_assist_needs_close", bool, False, False, "a hold is fingers closed from wide open: a hand "
+            Field("lift_assist_needs_close", bool, True, False, "a hold is fingers closed from wide open: a hand "
                   "the gripper veto holds open is not lifted; a measured scene only (module doc)")),
     check=lambda c: _check(c))
 
